@@ -1,0 +1,18 @@
+//! curvenet-core: the math of "Character Articulation through Profile Curves"
+//! (de Goes, Sheffler, Fleischer 2022), over plain slices.
+//!
+//! No async runtime, no JSON, no USD, no HTTP: callers (the `schema` crate's
+//! USD reader, the server) hand in `&[[f64; 3]]` points and index slices.
+//!
+//! Conventions used throughout:
+//! - Points are `[f64; 3]`; indices are `u32`.
+//! - A polygon mesh is `face_vertex_counts` + `face_vertex_indices`
+//!   (the USD / OBJ layout), faces counter-clockwise seen from outside.
+//! - A curvenet is a pool of control points plus cubic Bézier splines, each a
+//!   `[u32; 4]` of indices into the pool.
+
+pub mod error;
+pub mod mesh;
+
+pub use error::{Error, Result};
+pub use mesh::PolyMesh;
