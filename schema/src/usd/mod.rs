@@ -1,0 +1,22 @@
+//! The USD encoding of the contract (schema/README.md): reading a composed
+//! stage into plain data.
+//!
+//! ```no_run
+//! let stage = curvenet_schema::usd::Stage::open("fixtures/grid/grid.usda")?;
+//! for mesh in stage.deformed_meshes()? {
+//!     let rest = stage.rest_points(&mesh, Some(2.0))?;
+//!     for path in &mesh.curvenets {
+//!         let net = stage.curvenet(path)?;
+//!         let posed = stage.posed_pool(&net, Some(2.0))?;
+//!         # let _ = (&rest, posed);
+//!     }
+//! }
+//! # Ok::<(), curvenet_schema::usd::UsdError>(())
+//! ```
+
+mod error;
+mod read;
+mod value;
+
+pub use error::UsdError;
+pub use read::Stage;
