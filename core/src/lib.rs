@@ -13,6 +13,7 @@
 
 pub mod error;
 pub mod mesh;
+pub mod polygon_laplacian;
 
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;
