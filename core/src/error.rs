@@ -25,9 +25,51 @@ pub enum Error {
     /// Two arrays that must have the same length do not.
     #[error("{what}: expected {expected} entries, got {got}")]
     CountMismatch { what: &'static str, expected: usize, got: usize },
+    /// More than two faces share an edge.
+    #[error("non-manifold edge ({a}, {b}): {count} faces share it ({faces:?})")]
+    NonManifoldEdge { a: u32, b: u32, faces: Vec<u32>, count: usize },
+    /// Two faces traverse their shared edge in the same direction.
+    #[error("faces {} and {} have opposite orientations across edge ({a}, {b})", faces[0], faces[1])]
+    InconsistentOrientation { a: u32, b: u32, faces: [u32; 2] },
+    /// The faces around a vertex form more than one fan (e.g. a bowtie).
+    #[error("non-manifold vertex {vertex}: its faces form several fans (one fan covers {fans_cover} of its {faces} faces)")]
+    NonManifoldVertex { vertex: u32, fans_cover: u32, faces: u32 },
     /// A face repeats a vertex.
     #[error("face {face} repeats vertex {vertex}")]
     RepeatedFaceVertex { face: usize, vertex: u32 },
+    /// A spline's four control points coincide (within a tolerance relative
+    /// to the curvenet's size), or its arc length is zero.
+    #[error("spline {spline} has zero length: its control points coincide")]
+    ZeroLengthSpline { spline: usize },
+    /// Two curves leave an intersection in the same direction (seen along the
+    /// surface normal), so their counter-clockwise order and the corner
+    /// between them are undefined.
+    #[error(
+        "splines {splines:?} leave the intersection at control point {point} in the same direction; \
+         their counter-clockwise order is undefined"
+    )]
+    CoincidentTangents { point: u32, splines: [usize; 2] },
+    /// A curve leaves an intersection along the surface normal, so it has no
+    /// direction in the tangent plane to be ordered by.
+    #[error("spline {spline} leaves the intersection at control point {point} along the surface normal")]
+    TangentAlongNormal { point: u32, spline: usize },
+    /// The surface face closest to an intersection has zero area, hence no normal.
+    #[error("the surface face {face} closest to the intersection at control point {point} has zero area (no normal)")]
+    DegenerateSurfaceFace { point: u32, face: usize },
+    /// A segment of the sampled curvenet has (numerically) zero length in
+    /// some pose. `segment` counts from the spline's control point 0.
+    #[error("segment {segment} of spline {spline} has collapsed to length {length:e}")]
+    SegmentCollapsed { spline: usize, segment: usize, length: f64 },
+    /// In some pose all curves at an intersection are collinear, so no
+    /// corner normal can be formed.
+    #[error("the curves at the intersection at control point {point} are collinear; its corner normals are undefined")]
+    DegenerateIntersection { point: u32 },
+    /// The sampling would give a spline more segments than allowed.
+    #[error("spline {spline} would get {segments} segments, more than the maximum {max}")]
+    TooManySegments { spline: usize, segments: f64, max: u32 },
+    /// A numeric parameter or option is out of its valid range.
+    #[error("{what} must be finite and positive, got {value}")]
+    InvalidParameter { what: &'static str, value: f64 },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

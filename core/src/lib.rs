@@ -12,6 +12,7 @@
 //!   `[u32; 4]` of indices into the pool.
 
 pub mod error;
+pub mod halfedge;
 pub mod mesh;
 pub mod polygon_laplacian;
 
