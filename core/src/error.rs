@@ -34,6 +34,12 @@ pub enum Error {
     /// The faces around a vertex form more than one fan (e.g. a bowtie).
     #[error("non-manifold vertex {vertex}: its faces form several fans (one fan covers {fans_cover} of its {faces} faces)")]
     NonManifoldVertex { vertex: u32, fans_cover: u32, faces: u32 },
+    /// A matrix that must be symmetric positive definite is not (numerically).
+    #[error("the system matrix is not positive definite")]
+    NotPositiveDefinite,
+    /// A failure that is a bug in curvenet, not a problem with the input.
+    #[error("internal error: {what}")]
+    Internal { what: String },
     /// A face repeats a vertex.
     #[error("face {face} repeats vertex {vertex}")]
     RepeatedFaceVertex { face: usize, vertex: u32 },

@@ -11,6 +11,7 @@
 //! - A curvenet is a pool of control points plus cubic Bézier splines, each a
 //!   `[u32; 4]` of indices into the pool.
 
+pub mod cholesky;
 pub mod error;
 pub mod halfedge;
 pub mod mesh;
