@@ -21,7 +21,7 @@ def Xform "W" {
         rel skel:skeleton = </W/S>
         def BlendShape "B" {
             uniform vector3f[] offsets = [(0,0,1)]
-            uniform uint[] pointIndices = [2]
+            uniform int[] pointIndices = [2]
             uniform vector3f[] inbetweens:half = [(0,0,0.2)] ( weight = 0.5 )
         }
     }
@@ -147,8 +147,8 @@ fn mesh_errors_name_prim_and_attribute() {
         ("int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]", "int[] faceVertexIndices = [0, 1, 2, 0, 2]", "faceVertexIndices", "faceVertexCounts sum to 6"),
         ("int[] faceVertexCounts = [3, 3]", "int[] faceVertexCounts.timeSamples = { 1: [3, 3] }", "faceVertexCounts", "time samples"),
         ("rel curvenet:curvenets = </W/C>", "rel curvenet:curvenets = </W/C>\n        point3f[] primvars:curvenet:projectionPoints = [(0,0,0)]", "primvars:curvenet:projectionPoints", "has 1 points, the mesh has 4"),
-        ("uniform uint[] pointIndices = [2]", "uniform uint[] pointIndices = [2, 3]", "offsets", "pointIndices has 2"),
-        ("uniform uint[] pointIndices = [2]", "uniform uint[] pointIndices = [7]", "pointIndices", "entry 0 is 7"),
+        ("uniform int[] pointIndices = [2]", "uniform int[] pointIndices = [2, 3]", "offsets", "pointIndices has 2"),
+        ("uniform int[] pointIndices = [2]", "uniform int[] pointIndices = [7]", "pointIndices", "entry 0 is 7"),
         ("( weight = 0.5 )", "", "inbetweens:half", "no weight"),
     ];
     for (k, (from, to, attr, needle)) in cases.iter().enumerate() {

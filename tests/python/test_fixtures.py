@@ -1,0 +1,514 @@
+"""The USD fixtures read back through usd-core agree with fixtures/manifest.json
+(which fixtures/generate.py writes from its in-memory arrays), follow the contract
+of schema/README.md, and are up to date with the generator.
+
+Run: .venv/bin/python -m pytest tests/python -q
+"""
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+REPO = Path(__file__).resolve().parents[2]
+FIXTURES = REPO / "fixtures"
+GENERATE = FIXTURES / "generate.py"
+MANIFEST = json.loads((FIXTURES / "manifest.json").read_text(encoding="utf-8"))
+STAGES = sorted(MANIFEST["stages"])
+SHOT = "shots/hand_wave/shot.usda"
+HAND_STAGES = [f"hand/{n}" for n in
+               ("hand_1k4.usda", "hand_closed.usda", "hand_lowres.usda", "hand_22k.usdc", "hand_94k.usdc")]
+
+
+# ----------------------------------------------------------------------------
+# helpers
+
+
+def checksum(points):
+    """sum_i (i+1)(x_i + 2 y_i + 3 z_i) / n over float32 values widened to float64."""
+    p = np.asarray(points, dtype=np.float32).astype(np.float64).reshape(-1, 3)
+    if len(p) == 0:
+        return 0.0
+    i = np.arange(1, len(p) + 1, dtype=np.float64)
+    return float(np.sum(i * (p[:, 0] + 2.0 * p[:, 1] + 3.0 * p[:, 2]))) / len(p)
+
+
+def int_checksum(values):
+    v = [int(x) for x in values]
+    return sum((i + 1) * x for i, x in enumerate(v))
+
+
+def assert_close(got, want, what):
+    assert abs(got - want) <= 1e-9 * max(1.0, abs(want)), f"{what}: usd-core gives {got!r}, manifest {want!r}"
+
+
+def vec3(value):
+    return np.array(value, dtype=np.float32).reshape(-1, 3)
+
+
+_STAGES = {}
+
+
+def stage(rel):
+    if rel not in _STAGES:
+        s = Usd.Stage.Open(str(FIXTURES / rel))
+        assert s, f"usd-core cannot open {rel}"
+        _STAGES[rel] = s
+    return _STAGES[rel]
+
+
+def curvenet_prims(s):
+    return sorted(str(p.GetPath()) for p in s.Traverse() if p.HasAttribute("primvars:curvenet:cv"))
+
+
+def deformed_meshes(s):
+    return sorted(str(p.GetPath()) for p in s.Traverse()
+                  if p.IsA(UsdGeom.Mesh) and p.GetRelationship("curvenet:curvenets"))
+
+
+def pool_primvar(prim):
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("curvenet:cv")
+    assert pv, f"{prim.GetPath()}: no primvars:curvenet:cv"
+    return pv
+
+
+def valences(indices):
+    val = {}
+    for s in np.asarray(indices).reshape(-1, 4):
+        for e in (int(s[0]), int(s[3])):
+            val[e] = val.get(e, 0) + 1
+    return val
+
+
+def inbetween_name(ib):
+    return ib.GetAttr().GetName().split(":", 1)[1]
+
+
+def expected_offsets(full, inbetweens, weight):
+    """UsdSkel's rule: piecewise linear in the weight between the neighbouring
+    shapes, with an implicit zero shape at weight 0 and the full shape at 1."""
+    keys = [(0.0, np.zeros_like(full))] + sorted(inbetweens, key=lambda k: k[0]) + [(1.0, full)]
+    for (w0, o0), (w1, o1) in zip(keys, keys[1:]):
+        if w0 <= weight <= w1:
+            f = (weight - w0) / (w1 - w0)
+            return o0.astype(np.float64) * (1.0 - f) + o1.astype(np.float64) * f
+    raise AssertionError(f"weight {weight} outside [0, 1]")
+
+
+# ----------------------------------------------------------------------------
+# the manifest itself
+
+
+def test_manifest_lists_every_composed_stage():
+    assert MANIFEST["format"] == 1
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT] + HAND_STAGES)
+    for rel in STAGES:
+        assert (FIXTURES / rel).is_file(), rel
+
+
+# ----------------------------------------------------------------------------
+# every stage against the manifest
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_time_range(rel):
+    s, want = stage(rel), MANIFEST["stages"][rel]
+    if want["start"] is None:
+        assert want["end"] is None
+        assert not s.HasAuthoredTimeCodeRange(), f"{rel}: a time range is authored"
+    else:
+        assert s.HasAuthoredTimeCodeRange(), f"{rel}: no startTimeCode/endTimeCode"
+        assert s.GetStartTimeCode() == want["start"]
+        assert s.GetEndTimeCode() == want["end"]
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_meshes(rel):
+    s, want = stage(rel), MANIFEST["stages"][rel]["meshes"]
+    assert deformed_meshes(s) == sorted(want)
+    for path, w in want.items():
+        prim = s.GetPrimAtPath(path)
+        mesh = UsdGeom.Mesh(prim)
+        assert prim.IsA(UsdGeom.Mesh), path
+        counts = np.array(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
+        indices = np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
+        assert mesh.GetFaceVertexCountsAttr().GetNumTimeSamples() == 0, "topology is static"
+        assert mesh.GetFaceVertexIndicesAttr().GetNumTimeSamples() == 0, "topology is static"
+        points_attr = mesh.GetPointsAttr()
+        points = vec3(points_attr.Get(Usd.TimeCode.Default()))
+        assert len(points) == w["n_points"]
+        assert len(counts) == w["n_faces"]
+        assert len(indices) == w["n_face_vertex_indices"] == int(counts.sum())
+        assert indices.min() >= 0 and indices.max() < len(points)
+        assert int_checksum(indices) + int_checksum(counts) == w["topology_checksum"]
+        proj = UsdGeom.PrimvarsAPI(prim).GetPrimvar("curvenet:projectionPoints")
+        projection = vec3(proj.Get()) if proj and proj.HasAuthoredValue() else points
+        assert_close(checksum(projection), w["projection_checksum"], f"{rel} {path} projection")
+        assert_close(checksum(points), w["rest_default_checksum"], f"{rel} {path} rest default")
+        times = points_attr.GetTimeSamples()
+        assert [float(t) for t, _ in w["rest_samples"]] == list(times)
+        for t, c in w["rest_samples"]:
+            assert_close(checksum(points_attr.Get(t)), c, f"{rel} {path} rest at {t}")
+        targets = prim.GetRelationship("curvenet:curvenets").GetTargets()
+        assert [str(p) for p in targets] == w["curvenets"]
+        for p in targets:
+            assert s.GetPrimAtPath(p).IsA(UsdGeom.BasisCurves), f"{path} -> {p} is not a BasisCurves"
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_curvenets(rel):
+    s, want = stage(rel), MANIFEST["stages"][rel]["curvenets"]
+    assert curvenet_prims(s) == sorted(want)
+    for path, w in want.items():
+        prim = s.GetPrimAtPath(path)
+        pv = pool_primvar(prim)
+        pool = vec3(pv.Get(Usd.TimeCode.Default()))  # the pool itself, not flattened
+        indices = np.array(pv.GetIndices(), dtype=np.int64)
+        assert len(pool) == w["n_cv"]
+        assert len(indices) == 4 * w["n_splines"]
+        assert int_checksum(indices) == w["indices_checksum"]
+        density = prim.GetAttribute("curvenet:sampleDensity")
+        assert density.GetVariability() == Sdf.VariabilityUniform
+        assert density.Get() == w["sample_density"]
+        assert_close(checksum(pool), w["cv_default_checksum"], f"{rel} {path} cv default")
+        times = pv.GetTimeSamples()
+        assert [float(t) for t, _ in w["cv_samples"]] == list(times)
+        for t, c in w["cv_samples"]:
+            assert_close(checksum(pv.Get(t)), c, f"{rel} {path} cv at {t}")
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_curvenet_encoding_follows_the_contract(rel):
+    s = stage(rel)
+    for path in curvenet_prims(s):
+        prim = s.GetPrimAtPath(path)
+        curves = UsdGeom.BasisCurves(prim)
+        assert prim.IsA(UsdGeom.BasisCurves)
+        assert curves.GetTypeAttr().Get() == "cubic"
+        assert curves.GetBasisAttr().Get() == "bezier"
+        assert curves.GetWrapAttr().Get() == "nonperiodic"
+        for attr in (curves.GetTypeAttr(), curves.GetBasisAttr(), curves.GetWrapAttr()):
+            assert attr.HasAuthoredValue(), f"{path}: {attr.GetName()} must be authored"
+        pv = pool_primvar(prim)
+        assert pv.GetTypeName() == Sdf.ValueTypeNames.Point3fArray
+        assert pv.GetInterpolation() == UsdGeom.Tokens.vertex
+        assert pv.IsIndexed()
+        assert pv.GetIndicesAttr().GetTypeName() == Sdf.ValueTypeNames.IntArray
+        assert pv.GetIndicesAttr().GetNumTimeSamples() == 0, "indices are static"
+        indices = np.array(pv.GetIndices(), dtype=np.int64)
+        counts = list(curves.GetCurveVertexCountsAttr().Get())
+        assert counts == [4] * (len(indices) // 4) and len(indices) % 4 == 0
+        pool = vec3(pv.Get())
+        assert indices.min() >= 0 and indices.max() < len(pool)
+        assert sorted(set(indices.tolist())) == list(range(len(pool))), "every pool entry is used"
+        # points is the expanded copy cv[indices], at the default time and at every sample
+        points = curves.GetPointsAttr()
+        assert list(points.GetTimeSamples()) == list(pv.GetTimeSamples())
+        for t in [Usd.TimeCode.Default()] + [Usd.TimeCode(t) for t in pv.GetTimeSamples()]:
+            cv = vec3(pv.Get(t))
+            expanded = vec3(points.Get(t))
+            np.testing.assert_array_equal(expanded, cv[indices], err_msg=f"{rel} {path} points at {t}")
+            np.testing.assert_array_equal(vec3(pv.ComputeFlattened(t)), expanded)
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_blend_shapes(rel):
+    s, want = stage(rel), MANIFEST["stages"][rel]["meshes"]
+    for path, w in want.items():
+        prim = s.GetPrimAtPath(path)
+        binding = UsdSkel.BindingAPI(prim)
+        if not w["blend_shapes"]:
+            assert not prim.HasAPI(UsdSkel.BindingAPI) or not binding.GetBlendShapesAttr().HasAuthoredValue()
+            assert w["blend_shape_weights"] == []
+            continue
+        assert prim.HasAPI(UsdSkel.BindingAPI)
+        names = list(binding.GetBlendShapesAttr().Get())
+        targets = [str(p) for p in binding.GetBlendShapeTargetsRel().GetTargets()]
+        assert names == [b["name"] for b in w["blend_shapes"]]
+        assert targets == [b["prim"] for b in w["blend_shapes"]]
+        n_points = len(UsdGeom.Mesh(prim).GetPointsAttr().Get())
+        for b in w["blend_shapes"]:
+            shape = UsdSkel.BlendShape(s.GetPrimAtPath(b["prim"]))
+            assert shape.GetPrim().IsA(UsdSkel.BlendShape)
+            offsets = vec3(shape.GetOffsetsAttr().Get())
+            assert len(offsets) == b["n_offsets"]
+            assert_close(checksum(offsets), b["offsets_checksum"], f"{b['prim']} offsets")
+            pi_attr = shape.GetPointIndicesAttr()
+            if b["point_indices_checksum"] is None:
+                assert not pi_attr.HasAuthoredValue()
+                assert len(offsets) == n_points
+            else:
+                pi = np.array(pi_attr.Get(), dtype=np.int64)
+                assert int_checksum(pi) == b["point_indices_checksum"]
+                assert len(pi) == len(offsets) and pi.min() >= 0 and pi.max() < n_points
+                assert len(set(pi.tolist())) == len(pi)
+            inbetweens = sorted(shape.GetInbetweens(), key=inbetween_name)
+            assert [inbetween_name(ib) for ib in inbetweens] == [x["name"] for x in b["inbetweens"]]
+            for ib, x in zip(inbetweens, b["inbetweens"]):
+                assert_close(ib.GetWeight(), x["weight"], f"{b['prim']} {x['name']} weight")
+                assert_close(checksum(ib.GetOffsets()), x["offsets_checksum"], f"{b['prim']} {x['name']}")
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_blend_shape_weights(rel):
+    s, want = stage(rel), MANIFEST["stages"][rel]["meshes"]
+    for path, w in want.items():
+        if not w["blend_shape_weights"]:
+            continue
+        binding = UsdSkel.BindingAPI(s.GetPrimAtPath(path))
+        order = list(binding.GetBlendShapesAttr().Get())
+        skel_targets = binding.GetSkeletonRel().GetTargets()
+        assert len(skel_targets) == 1
+        skel = UsdSkel.Skeleton(s.GetPrimAtPath(skel_targets[0]))
+        assert skel, f"{path}: skel:skeleton does not lead to a Skeleton"
+        anim_targets = UsdSkel.BindingAPI(skel.GetPrim()).GetAnimationSourceRel().GetTargets()
+        assert len(anim_targets) == 1
+        anim = UsdSkel.Animation(s.GetPrimAtPath(anim_targets[0]))
+        assert anim, "skel:animationSource does not lead to a SkelAnimation"
+        anim_order = list(anim.GetBlendShapesAttr().Get())
+        attr = anim.GetBlendShapeWeightsAttr()
+        assert list(attr.GetTimeSamples()) == [float(t) for t, _ in w["blend_shape_weights"]]
+        for t, ws in w["blend_shape_weights"]:
+            values = list(attr.Get(t))
+            got = [values[anim_order.index(name)] for name in order]
+            assert len(got) == len(ws)
+            for g, x in zip(got, ws):
+                assert_close(float(g), x, f"{rel} {path} weight at {t}")
+
+
+# ----------------------------------------------------------------------------
+# UsdSkel recognises the shot's setup
+
+
+def test_usdskel_cache_finds_the_blend_shapes_of_the_shot():
+    s = stage(SHOT)
+    root = UsdSkel.Root(s.GetPrimAtPath("/Hand"))
+    assert root, "/Hand must be a SkelRoot in the shot"
+    cache = UsdSkel.Cache()
+    assert cache.Populate(root, Usd.TraverseInstanceProxies())
+    mesh = s.GetPrimAtPath("/Hand/Mesh")
+    query = cache.GetSkinningQuery(mesh)
+    assert query and query.HasBlendShapes()
+    assert list(query.GetBlendShapeOrder()) == ["bulge"]
+    skel_query = cache.GetSkelQuery(UsdSkel.Skeleton(s.GetPrimAtPath("/Hand/Skel")))
+    anim_query = skel_query.GetAnimQuery()
+    assert anim_query and list(anim_query.GetBlendShapeOrder()) == ["bulge"]
+    want = dict((t, ws) for t, ws in MANIFEST["stages"][SHOT]["meshes"]["/Hand/Mesh"]["blend_shape_weights"])
+    assert sorted(want) == list(range(1, 25))
+    for t, ws in want.items():
+        got = anim_query.ComputeBlendShapeWeights(Usd.TimeCode(t))
+        mapper = query.GetBlendShapeMapper()
+        if mapper is not None:
+            got = mapper.Remap(got)
+        assert [float(x) for x in got] == pytest.approx(ws, abs=0, rel=1e-9)
+    bindings = cache.ComputeSkelBindings(root, Usd.TraverseInstanceProxies())
+    assert [(str(b.GetSkeleton().GetPath()), len(b.GetSkinningTargets())) for b in bindings] == [("/Hand/Skel", 1)]
+    # the weights rise from 0 to 1 through 0.5, and return to 0
+    series = [want[t][0] for t in sorted(want)]
+    assert series[0] == 0.0 and max(series) == 1.0 and 0.5 in series and series[-1] == 0.0
+
+
+@pytest.mark.parametrize("weight", [0.0, 0.25, 0.5, 0.75, 1.0])
+def test_blend_shape_query_interpolates_inbetweens(weight):
+    s = stage(SHOT)
+    mesh = s.GetPrimAtPath("/Hand/Mesh")
+    shape = UsdSkel.BlendShape(s.GetPrimAtPath("/Hand/Mesh/Bulge"))
+    full = vec3(shape.GetOffsetsAttr().Get())
+    point_indices = np.array(shape.GetPointIndicesAttr().Get(), dtype=np.int64)
+    inbetweens = [(ib.GetWeight(), vec3(ib.GetOffsets())) for ib in shape.GetInbetweens()]
+    n_points = len(UsdGeom.Mesh(mesh).GetPointsAttr().Get())
+
+    query = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(mesh))
+    # sub-shapes: the implicit zero shape at weight 0, the inbetweens and the full shape
+    assert query.GetNumBlendShapes() == 1 and query.GetNumSubShapes() == 2 + len(inbetweens)
+    sub_weights, blend_indices, sub_indices = query.ComputeSubShapeWeights(Vt.FloatArray([weight]))
+    points = Vt.Vec3fArray(n_points)
+    assert query.ComputeDeformedPoints(sub_weights, blend_indices, sub_indices,
+                                       query.ComputeBlendShapePointIndices(),
+                                       query.ComputeSubShapePointOffsets(), points)
+    got = vec3(points).astype(np.float64)
+
+    want = np.zeros((n_points, 3))
+    want[point_indices] = expected_offsets(full, inbetweens, weight)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-7)
+    # the inbetween is not half of the full shape, so interpolating through it is observable
+    if 0.0 < weight < 1.0:
+        linear = np.zeros((n_points, 3))
+        linear[point_indices] = weight * full
+        assert np.abs(got - linear).max() > 1e-4
+
+
+# ----------------------------------------------------------------------------
+# what the fixtures are meant to show
+
+
+def test_grid_curvenet_topology_and_frames():
+    s = stage("grid/grid.usda")
+    pv = pool_primvar(s.GetPrimAtPath("/Grid/Curvenet"))
+    val = valences(pv.GetIndices())
+    assert sorted(val.values()).count(4) == 9
+    assert sorted(val.values()).count(3) == 12
+    assert sorted(val.values()).count(2) == 4
+    neutral = vec3(pv.Get()).astype(np.float64)
+    np.testing.assert_array_equal(vec3(pv.Get(1)), vec3(pv.Get()))
+    # frame 2 is rigid: pairwise distances kept
+    moved = vec3(pv.Get(2)).astype(np.float64)
+    d0 = np.linalg.norm(neutral[:, None] - neutral[None], axis=2)
+    d1 = np.linalg.norm(moved[:, None] - moved[None], axis=2)
+    np.testing.assert_allclose(d1, d0, atol=1e-6)
+    assert np.abs(moved - neutral).max() > 0.1
+    # frame 3: the hinge folds x > 0 up to +z, leaves x <= 0 alone
+    hinge = vec3(pv.Get(3)).astype(np.float64)
+    left = neutral[:, 0] <= 1e-9
+    np.testing.assert_array_equal(hinge[left], neutral[left])
+    np.testing.assert_allclose(hinge[~left], np.stack([0 * neutral[~left, 0], neutral[~left, 1], neutral[~left, 0]], 1),
+                               atol=1e-7)
+    np.testing.assert_allclose(vec3(pv.Get(4)), 1.5 * neutral, atol=1e-6)
+    # the mesh has vertex lines at x = 0 but not at x = 0.35
+    pts = vec3(UsdGeom.Mesh(s.GetPrimAtPath("/Grid/Mesh")).GetPointsAttr().Get())
+    assert np.any(np.abs(pts[:, 0]) < 1e-7) and not np.any(np.abs(pts[:, 0] - 0.35) < 1e-3)
+
+
+def test_cylinder_curvenet_topology_and_twist():
+    s = stage("cylinder/cylinder.usda")
+    pv = pool_primvar(s.GetPrimAtPath("/Cylinder/Curvenet"))
+    val = valences(pv.GetIndices())
+    assert sorted(val.values()) == [3] * 8 + [4] * 12
+    neutral = vec3(pv.Get()).astype(np.float64)
+    for t, total in ((2, 90.0), (3, 180.0)):
+        posed = vec3(pv.Get(t)).astype(np.float64)
+        np.testing.assert_allclose(posed[:, 2], neutral[:, 2], atol=1e-7)
+        np.testing.assert_allclose(np.hypot(posed[:, 0], posed[:, 1]), np.hypot(neutral[:, 0], neutral[:, 1]), atol=1e-6)
+        a0 = np.arctan2(neutral[:, 1], neutral[:, 0])
+        a1 = np.arctan2(posed[:, 1], posed[:, 0])
+        turn = np.degrees((a1 - a0 + np.pi) % (2 * np.pi) - np.pi) % 360.0
+        want = (total * (neutral[:, 2] + 0.9) / 1.8) % 360.0
+        diff = np.abs((turn - want + 180.0) % 360.0 - 180.0)
+        assert diff.max() < 1e-3
+    # outward faces: the signed volume of the closed mesh is positive (close to pi r^2 h)
+    mesh = UsdGeom.Mesh(s.GetPrimAtPath("/Cylinder/Mesh"))
+    assert signed_volume(mesh) == pytest.approx(math.pi * 0.25 * 2.0, rel=0.01)
+
+
+def signed_volume(mesh):
+    pts = vec3(mesh.GetPointsAttr().Get()).astype(np.float64)
+    counts = list(mesh.GetFaceVertexCountsAttr().Get())
+    idx = list(mesh.GetFaceVertexIndicesAttr().Get())
+    vol, k = 0.0, 0
+    for c in counts:
+        f = idx[k:k + c]
+        k += c
+        for j in range(1, c - 1):
+            vol += np.dot(pts[f[0]], np.cross(pts[f[j]], pts[f[j + 1]])) / 6.0
+    return vol
+
+
+@pytest.mark.parametrize("rel", HAND_STAGES)
+def test_hand_stages_reference_the_shared_curvenet(rel):
+    s = stage(rel)
+    layer_prim = s.GetRootLayer().GetPrimAtPath("/Hand/Curvenet")
+    refs = layer_prim.referenceList.GetAddedOrExplicitItems()
+    assert [r.assetPath for r in refs] == ["./curvenet.usda"]
+    assert not layer_prim.attributes, "the curvenet's data comes from the reference only"
+    prim = s.GetPrimAtPath("/Hand/Curvenet")
+    assert prim.GetTypeName() == "BasisCurves"
+    shared = Usd.Stage.Open(str(FIXTURES / "hand" / "curvenet.usda"))
+    assert shared.GetDefaultPrim().GetPath() == Sdf.Path("/Curvenet")
+    np.testing.assert_array_equal(vec3(pool_primvar(prim).Get()),
+                                  vec3(pool_primvar(shared.GetDefaultPrim()).Get()))
+    assert "CC BY 4.0" in s.GetRootLayer().documentation
+
+
+def test_hand_curvenet_has_rings_lines_anchors_and_junctions():
+    s = stage("hand/hand_closed.usda")
+    pv = pool_primvar(s.GetPrimAtPath("/Hand/Curvenet"))
+    indices = np.array(pv.GetIndices()).reshape(-1, 4)
+    assert 40 <= len(indices) <= 120
+    val = valences(indices)
+    assert sum(v == 1 for v in val.values()) >= 1, "an anchor"
+    assert sum(v == 3 for v in val.values()) >= 1, "a T-junction"
+    assert sum(v >= 4 for v in val.values()) >= 5, "intersections"
+    # an isolated closed ring: a connected component whose knots all have valence 2
+    parent = {k: k for k in val}
+
+    def find(k):
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    for sp in indices:
+        parent[find(int(sp[0]))] = find(int(sp[3]))
+    comps = {}
+    for k in val:
+        comps.setdefault(find(k), []).append(k)
+    assert any(all(val[k] == 2 for k in c) for c in comps.values()), "an isolated closed ring"
+    # the knots lie on the surface (within 0.5% of the diagonal of hand_closed): vertex distance is an upper bound
+    pts = vec3(UsdGeom.Mesh(s.GetPrimAtPath("/Hand/Mesh")).GetPointsAttr().Get()).astype(np.float64)
+    diag = np.linalg.norm(pts.max(0) - pts.min(0))
+    cv = vec3(pv.Get()).astype(np.float64)
+    knots = cv[sorted(val)]
+    nearest = np.sqrt(((knots[:, None, :] - pts[None, :, :]) ** 2).sum(2)).min(1)
+    assert nearest.max() < 0.02 * diag  # vertex spacing ~1% of the diagonal; the exact check is in generate.py
+
+
+def test_shot_curls_only_the_index_finger():
+    s = stage(SHOT)
+    pv = pool_primvar(s.GetPrimAtPath("/Hand/Curvenet"))
+    neutral = vec3(pv.Get()).astype(np.float64)
+    np.testing.assert_array_equal(vec3(pv.Get(1)), vec3(pv.Get()))
+    np.testing.assert_array_equal(vec3(pv.Get(24)), vec3(pv.Get()))
+    peak = vec3(pv.Get(13)).astype(np.float64)
+    moved = np.linalg.norm(peak - neutral, axis=1) > 1e-6
+    assert 10 < moved.sum() < len(neutral) / 3
+    # the moving points are around x ~ -0.12 (the index finger), and move towards the palm (+z)
+    assert np.all(np.abs(neutral[moved, 0] + 0.12) < 0.08)
+    assert np.mean(peak[moved, 2] - neutral[moved, 2]) > 0.05
+    # layers: anim.usda holds only `over` prims at its root
+    anim = Sdf.Layer.FindOrOpen(str(FIXTURES / "shots/hand_wave/anim.usda"))
+    assert [p.specifier for p in anim.rootPrims] == [Sdf.SpecifierOver]
+    assert list(s.GetRootLayer().subLayerPaths) == ["./anim.usda", "../../hand/hand_1k4.usda"]
+    assert s.GetFramesPerSecond() == 24
+
+
+# ----------------------------------------------------------------------------
+# the generator
+
+
+def run_generate(*args):
+    return subprocess.run([sys.executable, str(GENERATE), *args], capture_output=True, text=True, timeout=600)
+
+
+def test_generate_check_passes():
+    r = run_generate("--check")
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_generate_check_reports_every_difference(tmp_path):
+    copy = tmp_path / "fixtures"
+    shutil.copytree(FIXTURES, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(copy / "grid" / "grid.usda", "a", encoding="utf-8") as fh:
+        fh.write("\n")
+    os.remove(copy / "hand" / "hand_lowres.usda")
+    layer = Sdf.Layer.FindOrOpen(str(copy / "hand" / "hand_22k.usdc"))
+    attr = layer.GetAttributeAtPath("/Hand/Mesh.points")
+    pts = list(attr.default)
+    pts[0] = pts[0] * 2.0
+    attr.default = Vt.Vec3fArray(pts)
+    layer.Save()
+    (copy / "stray.usda").write_text("#usda 1.0\n", encoding="utf-8")
+    r = run_generate("--check", "--dir", str(copy))
+    assert r.returncode == 1, r.stdout + r.stderr
+    out = r.stdout
+    assert "differs: grid/grid.usda" in out
+    assert "missing: hand/hand_lowres.usda" in out
+    assert "differs: hand/hand_22k.usdc" in out and "bytes only" not in out
+    assert "stray.usda" in out
+    assert "cylinder" not in out and "manifest.json" not in out
