@@ -12,10 +12,14 @@
 //!   `[u32; 4]` of indices into the pool.
 
 pub mod cholesky;
+pub mod closest_point;
+pub mod curvenet;
 pub mod error;
 pub mod halfedge;
 pub mod mesh;
 pub mod polygon_laplacian;
 
+pub use closest_point::{ClosestPointBvh, Hit};
+pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;

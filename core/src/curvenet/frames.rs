@@ -1,0 +1,297 @@
+//! Scaled frames `B S` on both sides of every segment (§3, "Normal & width
+//! at intersections" and "Normal & width interpolation").
+//!
+//! For the segments `s_i` emanating from an intersection in counter-clockwise
+//! order, with outward unit tangents `t_i` and lengths `l_i`:
+//!
+//! - corner vectors `c_i = t_i × t_{i+1}`, corner normals `m_i = c_i/‖c_i‖`;
+//! - left (+) normal `n⁺_i = m_i`, right (−) normal `n⁻_i = m_{i−1}`;
+//! - widths `w⁺_i = l_i + ‖c_i‖(l_{i+1} − l_i)`, `w⁻_i = l_i + ‖c_{i−1}‖(l_{i−1} − l_i)`.
+//!
+//! Along a curve the normals are parallel-transported from an intersection
+//! by the smallest rotation between consecutive tangents. Between two
+//! intersections the mismatch at the far end, the torsion
+//! `θ = atan2((Ω_k n_1)·(n_k × t_k), (Ω_k n_1)·n_k)`, is blended in by
+//! normalised arc length `α_i = Σ_{j<i} l_j / Σ_j l_j` (rotation by `α_i θ`
+//! about `t_i`), and widths are interpolated `w_i = (1 − α_i) w_1 + α_i w_k`.
+//! Towards an anchor the width is copied. Finally `b = n × t`,
+//! `h = sqrt(l w)`, `B = [t b n]`, `S = diag(l, w, h)`.
+//!
+//! # Decisions where the paper is silent
+//!
+//! - **Reflex corners.** A corner whose vector points against the surface
+//!   normal in the neutral pose (the curves span less than a half plane) is
+//!   negated, in every pose, so that corner normals follow the surface
+//!   normal. This changes no deformation gradient while the corner stays
+//!   reflex, but keeps the torsion angle away from ±π, where `atan2` would
+//!   jump between poses.
+//! - **T-junctions.** The paper replaces `m_i` by `(c_{i+1} + c_{i−1})/‖·‖`
+//!   when `t_i ∥ t_{i+1}`. Here a corner with `‖c_i‖ < T_JUNCTION_SIN`
+//!   blends smoothly from `c_i/‖c_i‖` (at `‖c_i‖ = T_JUNCTION_SIN`) to that
+//!   fallback (at `‖c_i‖ = 0`), so a T-junction bending slightly in a pose
+//!   does not flip its normal. A corner that is a T-junction in the neutral
+//!   pose has its vector oriented along the fallback in every pose. The
+//!   fallback is not orthogonal to `t_i` in general: every normal is
+//!   projected orthogonally to its tangent and renormalised.
+//! - **Antiparallel consecutive tangents** (a hairpin segment pair) transport
+//!   the normal unchanged (a half turn about the normal).
+//! - **Curves with no intersection** (both ends anchors, or isolated closed
+//!   curves) get tangent-only frames: `normal = binormal = 0`,
+//!   `scale = (l, l, l)`; their gradient uses the tangents only.
+
+use glam::DVec3;
+
+use super::intersections::IntersectionFan;
+use super::layout::CurvenetLayout;
+use super::rotation::{orthonormalize, rotate_about, transport};
+use super::{Mat3, Side, v3};
+use crate::error::{Error, Result};
+
+/// Corners with `|t_i × t_{i+1}|` below this (about 1.15°) are treated as
+/// T-junction corners (see the module docs).
+pub const T_JUNCTION_SIN: f64 = 0.02;
+
+/// Vectors shorter than this (relative to unit vectors) are treated as zero.
+const TINY: f64 = 1e-12;
+
+/// An orthonormal frame with a scale per axis: `B S` with `B = [t b n]`,
+/// `S = diag(l, w, h)`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ScaledFrame {
+    /// Unit tangent `t` of the segment, in curve direction.
+    pub tangent: [f64; 3],
+    /// Unit binormal `b = n × t` (points to the curve's plus/left side);
+    /// zero for tangent-only frames.
+    pub binormal: [f64; 3],
+    /// Unit normal `n` of this side; zero for tangent-only frames.
+    pub normal: [f64; 3],
+    /// `(l, w, h)`: segment length, side width, and `sqrt(l w)`.
+    pub scale: [f64; 3],
+}
+
+impl ScaledFrame {
+    /// The matrix `B S` (row-major): column `j` is axis `j` times scale `j`.
+    pub fn matrix(&self) -> Mat3 {
+        let axes = [self.tangent, self.binormal, self.normal];
+        let mut m = [[0.0; 3]; 3];
+        for (r, row) in m.iter_mut().enumerate() {
+            for (j, x) in row.iter_mut().enumerate() {
+                *x = axes[j][r] * self.scale[j];
+            }
+        }
+        m
+    }
+
+    /// Whether the frame has a normal (false for curves with no intersection).
+    pub fn has_normal(&self) -> bool {
+        self.normal != [0.0; 3]
+    }
+}
+
+/// Normals and widths of one curve end, per curve side (index `Side as usize`).
+#[derive(Debug, Clone, Copy)]
+struct EndFrame {
+    normal: [DVec3; 2],
+    width: [f64; 2],
+}
+
+/// Computes the scaled frames of both sides of every segment of the curvenet
+/// sampled at `samples` (`#Q`, e.g. from `Sampling::samples_into`) into `out`
+/// (`#G` pairs indexed `[segment][side as usize]`). Allocation-free.
+///
+/// Fails with [`Error::CountMismatch`] for wrong buffer lengths,
+/// [`Error::SegmentCollapsed`] naming the spline and segment when a segment
+/// is (numerically) zero length, and [`Error::DegenerateIntersection`] when
+/// all curves at an intersection are collinear. Never returns NaN.
+pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &mut [[ScaledFrame; 2]]) -> Result<()> {
+    let sampling = layout.sampling();
+    if samples.len() != sampling.n_samples() {
+        return Err(Error::CountMismatch {
+            what: "curvenet samples",
+            expected: sampling.n_samples(),
+            got: samples.len(),
+        });
+    }
+    if out.len() != sampling.n_segments() {
+        return Err(Error::CountMismatch {
+            what: "scaled frame buffer",
+            expected: sampling.n_segments(),
+            got: out.len(),
+        });
+    }
+    // Tangents and lengths.
+    let min_length = layout.collapse_length();
+    for (s, seg) in sampling.segments().iter().enumerate() {
+        let [a, b] = seg.samples;
+        let d = v3(samples[b as usize]) - v3(samples[a as usize]);
+        let l = d.length();
+        if !l.is_finite() {
+            return Err(Error::NonFinite { what: "curvenet sample", index: b as usize, value: samples[b as usize] });
+        }
+        if l <= min_length {
+            return Err(Error::SegmentCollapsed {
+                spline: seg.spline as usize,
+                segment: seg.spline_segment as usize,
+                length: l,
+            });
+        }
+        let f = ScaledFrame { tangent: (d / l).to_array(), binormal: [0.0; 3], normal: [0.0; 3], scale: [l, l, l] };
+        out[s] = [f, f];
+    }
+    // Normals and widths, curve by curve.
+    for c in 0..sampling.n_curves() {
+        let [start, end] = layout.curve_end_slots(c);
+        if start.is_none() && end.is_none() {
+            continue;
+        }
+        let segs = sampling.curve_segments(c);
+        let start = start.map(|(f, k)| end_frame(layout.intersections(), f, k, true, out)).transpose()?;
+        let end = end.map(|(f, k)| end_frame(layout.intersections(), f, k, false, out)).transpose()?;
+        match (start, end) {
+            (Some(first), last) => {
+                // Transport forwards from the start.
+                let mut u = first.normal;
+                for s in segs.clone() {
+                    if s > segs.start {
+                        for n in &mut u {
+                            *n = orthonormalize(transport(*n, tangent(out, s - 1), tangent(out, s)), tangent(out, s))
+                                .unwrap_or(*n);
+                        }
+                    }
+                    for side in 0..2 {
+                        out[s][side].normal = u[side].to_array();
+                        out[s][side].scale[1] = first.width[side];
+                    }
+                }
+                if let Some(last) = last {
+                    let t_k = tangent(out, segs.end - 1);
+                    let theta = [0, 1]
+                        .map(|side| u[side].dot(last.normal[side].cross(t_k)).atan2(u[side].dot(last.normal[side])));
+                    let total: f64 = segs.clone().map(|s| out[s][0].scale[0]).sum();
+                    let mut arc = 0.0;
+                    for s in segs.clone() {
+                        let alpha = arc / total;
+                        let t = tangent(out, s);
+                        for side in 0..2 {
+                            let n = rotate_about(v3(out[s][side].normal), t, alpha * theta[side]);
+                            out[s][side].normal = orthonormalize(n, t).unwrap_or(n).to_array();
+                            out[s][side].scale[1] = (1.0 - alpha) * first.width[side] + alpha * last.width[side];
+                        }
+                        arc += out[s][0].scale[0];
+                    }
+                }
+            }
+            (None, Some(last)) => {
+                // Transport backwards from the end towards the anchor.
+                let mut u = last.normal;
+                for s in segs.clone().rev() {
+                    if s + 1 < segs.end {
+                        for n in &mut u {
+                            *n = orthonormalize(transport(*n, tangent(out, s + 1), tangent(out, s)), tangent(out, s))
+                                .unwrap_or(*n);
+                        }
+                    }
+                    for side in 0..2 {
+                        out[s][side].normal = u[side].to_array();
+                        out[s][side].scale[1] = last.width[side];
+                    }
+                }
+            }
+            (None, None) => unreachable!("curves with no intersection are skipped"),
+        }
+        for s in segs {
+            for f in &mut out[s] {
+                let (t, n) = (v3(f.tangent), v3(f.normal));
+                f.binormal = n.cross(t).to_array();
+                f.scale[2] = (f.scale[0] * f.scale[1]).sqrt();
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Allocating form of [`scaled_frames_into`].
+pub fn scaled_frames(layout: &CurvenetLayout, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
+    let mut out = vec![[ScaledFrame::default(); 2]; layout.sampling().n_segments()];
+    scaled_frames_into(layout, samples, &mut out)?;
+    Ok(out)
+}
+
+/// Normals and widths, per curve side, at the curve end occupying position
+/// `k` of fan `f`. `at_start` tells whether it is the curve's start.
+fn end_frame(
+    fans: &[IntersectionFan],
+    f: u32,
+    k: u32,
+    at_start: bool,
+    frames: &[[ScaledFrame; 2]],
+) -> Result<EndFrame> {
+    let fan = &fans[f as usize];
+    let v = fan.valence();
+    let k = k as usize;
+    // Outward tangent and length of emanation j.
+    let out_tangent = |j: usize| {
+        let e = fan.emanations()[j % v];
+        let t = v3(frames[e.segment as usize][0].tangent);
+        (if e.at_start { t } else { -t }, frames[e.segment as usize][0].scale[0])
+    };
+    let raw = |j: usize| out_tangent(j).0.cross(out_tangent(j + 1).0);
+    let oriented = |j: usize| {
+        let c = raw(j % v);
+        if fan.corner_sign(j % v) < 0 { -c } else { c }
+    };
+    let corner_normal = |j: usize| -> Result<DVec3> {
+        let j = j % v;
+        let c = raw(j);
+        let nc = c.length();
+        let fallback = oriented(j + 1) + oriented(j + v - 1);
+        let c_hat = match fan.corner_sign(j) {
+            0 if c.dot(fallback) < 0.0 => -c,
+            s if s < 0 => -c,
+            _ => c,
+        };
+        if nc >= T_JUNCTION_SIN {
+            return Ok(c_hat / nc);
+        }
+        let lambda = 1.0 - nc / T_JUNCTION_SIN;
+        let nf = fallback.length();
+        let blend = match (nc > TINY, nf > TINY) {
+            (true, true) => (1.0 - lambda) * (c_hat / nc) + lambda * (fallback / nf),
+            (false, true) => fallback,
+            (true, false) => c_hat,
+            (false, false) => DVec3::ZERO,
+        };
+        if blend.length() > 1e-6 {
+            return Ok(blend.normalize());
+        }
+        if nf > TINY {
+            return Ok(fallback / nf);
+        }
+        let sum: DVec3 = (0..v).map(oriented).sum();
+        if sum.length() > TINY {
+            Ok(sum.normalize())
+        } else {
+            Err(Error::DegenerateIntersection { point: fan.point() })
+        }
+    };
+    let (t, l) = out_tangent(k);
+    let degenerate = || Error::DegenerateIntersection { point: fan.point() };
+    let n_left = orthonormalize(corner_normal(k)?, t).ok_or_else(degenerate)?;
+    let n_right = orthonormalize(corner_normal(k + v - 1)?, t).ok_or_else(degenerate)?;
+    let w_left = l + raw(k).length() * (out_tangent(k + 1).1 - l);
+    let w_right = l + raw(k + v - 1).length() * (out_tangent(k + v - 1).1 - l);
+    // Seen from the intersection, a curve end is walked backwards: its left
+    // is the curve's right.
+    let (plus, minus) =
+        if at_start { ((n_left, w_left), (n_right, w_right)) } else { ((n_right, w_right), (n_left, w_left)) };
+    let mut frame = EndFrame { normal: [DVec3::ZERO; 2], width: [0.0; 2] };
+    for (side, (n, w)) in [(Side::Plus, plus), (Side::Minus, minus)] {
+        frame.normal[side as usize] = n;
+        frame.width[side as usize] = w;
+    }
+    Ok(frame)
+}
+
+fn tangent(frames: &[[ScaledFrame; 2]], s: usize) -> DVec3 {
+    v3(frames[s][0].tangent)
+}

@@ -1,0 +1,150 @@
+//! The analysed curvenet: everything that depends only on the neutral pose,
+//! computed once and immutable afterwards.
+
+use super::constraints::ConstraintTable;
+use super::frames::{ScaledFrame, scaled_frames};
+use super::intersections::{IntersectionFan, intersection_fans};
+use super::sampling::{Sampling, SamplingOptions};
+use super::topology::Topology;
+use super::{Curvenet, v3};
+use crate::closest_point::ClosestPointBvh;
+use crate::error::{Error, Result};
+use crate::mesh::PolyMesh;
+
+/// A segment shorter than this fraction of the mean neutral segment length
+/// has collapsed ([`Error::SegmentCollapsed`]).
+pub const COLLAPSE_TOLERANCE: f64 = 1e-10;
+
+/// The neutral-pose analysis of a curvenet (§3): topology, the fixed
+/// sampling plan, the counter-clockwise order of curves at every
+/// intersection, the constraint slots, and the neutral samples and frames.
+/// Immutable and `Send + Sync`.
+#[derive(Debug, Clone)]
+pub struct CurvenetLayout {
+    topology: Topology,
+    sampling: Sampling,
+    fans: Vec<IntersectionFan>,
+    curve_ends: Vec<[Option<(u32, u32)>; 2]>,
+    curve_isolated: Vec<bool>,
+    constraints: ConstraintTable,
+    neutral_samples: Vec<[f64; 3]>,
+    neutral_frames: Vec<[ScaledFrame; 2]>,
+    collapse_length: f64,
+}
+
+impl CurvenetLayout {
+    /// Analyses `curvenet` (its neutral pose) against the surface `mesh`
+    /// posed at `mesh_points` (`#V`; the pose the curvenet was drawn on,
+    /// used both for the mean edge length of the sampling density and for
+    /// the surface normals at intersections).
+    pub fn new(
+        curvenet: &Curvenet,
+        mesh: &PolyMesh,
+        mesh_points: &[[f64; 3]],
+        options: &SamplingOptions,
+    ) -> Result<Self> {
+        let bvh = ClosestPointBvh::new(mesh, mesh_points)?;
+        Self::with_closest_point(curvenet, &bvh, mesh.mean_edge_length(mesh_points), options)
+    }
+
+    /// Like [`Self::new`], reusing a closest-point hierarchy of the surface
+    /// and its mean edge length.
+    pub fn with_closest_point(
+        curvenet: &Curvenet,
+        bvh: &ClosestPointBvh,
+        mean_edge_length: f64,
+        options: &SamplingOptions,
+    ) -> Result<Self> {
+        let topology = Topology::new(curvenet);
+        let sampling = Sampling::new(curvenet, &topology, mean_edge_length, options)?;
+        let neutral_samples = sampling.samples(curvenet.points())?;
+        let lengths: Vec<f64> = sampling
+            .segments()
+            .iter()
+            .map(|s| (v3(neutral_samples[s.samples[1] as usize]) - v3(neutral_samples[s.samples[0] as usize])).length())
+            .collect();
+        let mean = lengths.iter().sum::<f64>() / lengths.len() as f64;
+        let collapse_length = COLLAPSE_TOLERANCE * mean;
+        if let Some((s, &length)) = lengths.iter().enumerate().find(|(_, l)| l.is_nan() || **l <= collapse_length) {
+            let seg = sampling.segments()[s];
+            return Err(Error::SegmentCollapsed {
+                spline: seg.spline as usize,
+                segment: seg.spline_segment as usize,
+                length,
+            });
+        }
+        let (fans, curve_ends) = intersection_fans(&topology, &sampling, &neutral_samples, bvh)?;
+        let curve_isolated = topology.curves().iter().map(|c| c.is_isolated()).collect();
+        let constraints = ConstraintTable::new(&sampling, &topology);
+        let mut layout = Self {
+            topology,
+            sampling,
+            fans,
+            curve_ends,
+            curve_isolated,
+            constraints,
+            neutral_samples,
+            neutral_frames: Vec::new(),
+            collapse_length,
+        };
+        layout.neutral_frames = scaled_frames(&layout, &layout.neutral_samples)?;
+        Ok(layout)
+    }
+
+    /// Intersections, anchors and curves.
+    pub fn topology(&self) -> &Topology {
+        &self.topology
+    }
+
+    /// The fixed sampling plan; its `samples_into` evaluates a pose.
+    pub fn sampling(&self) -> &Sampling {
+        &self.sampling
+    }
+
+    /// One fan per intersection, in the order of `Topology::intersections`.
+    pub fn intersections(&self) -> &[IntersectionFan] {
+        &self.fans
+    }
+
+    /// The constraint slots (§4.3).
+    pub fn constraints(&self) -> &ConstraintTable {
+        &self.constraints
+    }
+
+    /// The samples of the neutral pose (`#Q`).
+    pub fn neutral_samples(&self) -> &[[f64; 3]] {
+        &self.neutral_samples
+    }
+
+    /// The scaled frames of the neutral pose (`#G` pairs), the default rest frames.
+    pub fn neutral_frames(&self) -> &[[ScaledFrame; 2]] {
+        &self.neutral_frames
+    }
+
+    /// Number of samples `#Q`.
+    pub fn n_samples(&self) -> usize {
+        self.sampling.n_samples()
+    }
+
+    /// Number of segments `#G`.
+    pub fn n_segments(&self) -> usize {
+        self.sampling.n_segments()
+    }
+
+    /// Whether curve `c` meets no intersection (tangent-only frames).
+    pub fn curve_is_isolated(&self, c: usize) -> bool {
+        self.curve_isolated[c]
+    }
+
+    /// `[start, end]` of curve `c`: `(fan, position in the fan)` where the
+    /// end is at an intersection, `None` at an anchor or for closed isolated curves.
+    pub fn curve_end_slots(&self, c: usize) -> [Option<(u32, u32)>; 2] {
+        self.curve_ends[c]
+    }
+
+    /// Segments shorter than this length have collapsed
+    /// ([`COLLAPSE_TOLERANCE`] × the mean neutral segment length).
+    pub fn collapse_length(&self) -> f64 {
+        self.collapse_length
+    }
+}

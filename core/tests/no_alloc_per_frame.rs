@@ -1,0 +1,63 @@
+//! The per-frame path (sampling, frames, gradients, constraint remap) makes
+//! no heap allocation. This binary holds a single test so the counting
+//! allocator sees no other thread.
+
+mod common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use common::*;
+use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
+use curvenet_core::{Curvenet, CurvenetLayout, Mat3, SamplingOptions};
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn per_frame_evaluation_does_not_allocate() {
+    let (mesh, pts) = cylinder(1.0, -1.0, 4.0, 48, 30);
+    let b = cylinder_net();
+    let net = Curvenet::new(&b.splines, &b.points).unwrap();
+    let layout = CurvenetLayout::new(&net, &mesh, &pts, &SamplingOptions::default()).unwrap();
+    let r = rotation([0.2, 1.0, 0.3], 0.7);
+    let pose: Vec<[f64; 3]> = b.points.iter().map(|&p| apply(&r, p)).collect();
+    let mut samples = vec![[0.0; 3]; layout.n_samples()];
+    let mut frames = vec![[ScaledFrame::default(); 2]; layout.n_segments()];
+    let mut f: Vec<[Mat3; 2]> = vec![[[[0.0; 3]; 3]; 2]; layout.n_segments()];
+    let mut fc: Vec<Mat3> = vec![[[0.0; 3]; 3]; layout.constraints().len()];
+
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for _ in 0..3 {
+        layout.sampling().samples_into(&pose, &mut samples).unwrap();
+        scaled_frames_into(&layout, &samples, &mut frames).unwrap();
+        deformation_gradients_into(&layout, layout.neutral_frames(), &frames, &mut f).unwrap();
+        constraint_gradients_into(layout.constraints(), &f, &mut fc).unwrap();
+    }
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(after - before, 0, "the per-frame path allocated");
+
+    // And it computed something: F = R on curves meeting an intersection.
+    let s = layout.sampling().segments().iter().position(|s| !layout.curve_is_isolated(s.curve as usize)).unwrap();
+    assert!(max_diff(&f[s][0], &r) < 1e-9);
+    let slot = layout.constraints().slots().iter().position(|sl| !layout.curve_is_isolated(sl.curve as usize)).unwrap();
+    assert!(max_diff(&fc[slot], &r) < 1e-9);
+}
