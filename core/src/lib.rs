@@ -11,6 +11,7 @@
 //! - A curvenet is a pool of control points plus cubic Bézier splines, each a
 //!   `[u32; 4]` of indices into the pool.
 
+pub mod binding;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
@@ -18,8 +19,12 @@ pub mod error;
 pub mod halfedge;
 pub mod mesh;
 pub mod polygon_laplacian;
+pub mod solve;
+pub mod sparse;
 
+pub use binding::{BindOptions, BindWarning, Binding};
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;
+pub use solve::Workspace;

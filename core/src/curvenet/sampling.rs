@@ -268,6 +268,11 @@ impl Sampling {
         })
     }
 
+    /// Number of control points `#P` of the pool this plan samples.
+    pub fn n_points(&self) -> usize {
+        self.n_points
+    }
+
     /// Number of samples `#Q` (the length of a sample buffer).
     pub fn n_samples(&self) -> usize {
         self.n_samples

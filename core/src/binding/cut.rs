@@ -1,0 +1,695 @@
+//! The cut-mesh (paper §4.1): the input mesh with every curvenet segment
+//! inserted, its faces split into cut-faces along the segments, possibly
+//! with cracks, and islands removed.
+//!
+//! Construction, face by face: every cut-face lies inside one input face, so
+//! each input face is split on its own, in its own plane (the paper's tangent
+//! plane of a cut-vertex inside a face). The face's boundary (its corners and
+//! the cut-vertices on its edges, counter-clockwise) and the segment pieces
+//! inside it (chords) form a planar straight-line graph; sorting each node's
+//! neighbours by angle and following "next = the neighbour just clockwise of
+//! where we came from" enumerates its faces. A dangling chord is walked out
+//! and back by the same loop: a crack, two halfedges of one cut-face. Chord
+//! clusters that touch no boundary node are islands and are removed. The
+//! per-face loops are then stitched across input edges into one halfedge
+//! mesh, so circulating around a cut-vertex crosses from face to face.
+//!
+//! Halfedges of one cut-face are contiguous, in loop order, so halfedge `h`
+//! is also face corner `h` (the corner at `tail(h)`).
+
+use std::collections::HashMap;
+
+use glam::{DVec2, DVec3};
+
+use super::locate::Location;
+use super::surface::{Surface, segments_cross};
+use super::trace::{Path, TraceFailure};
+use crate::error::{Error, Result};
+use crate::halfedge::INVALID;
+
+/// Cut-vertex bitmask: the cut-vertex is an input mesh vertex.
+pub const MESH_VERTEX: u8 = 1;
+/// Cut-vertex bitmask: a curvenet sample projects here.
+pub const SAMPLE: u8 = 2;
+/// Cut-vertex bitmask: a segment crosses a mesh edge (or passes a mesh vertex) here.
+pub const CROSSING: u8 = 4;
+
+/// What a cut-vertex carries of the curvenet.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CurvePoint {
+    /// Not on the curvenet.
+    None,
+    /// The projection of sample `sample` (the first, if several merged).
+    Sample(u32),
+    /// A point of segment `segment` at arc-length fraction `t` in (0, 1).
+    Crossing { segment: u32, t: f64 },
+}
+
+/// The curvenet as the cutter needs it: projection-pose sample positions
+/// and segments as sample pairs (from sample `[0]` to sample `[1]`).
+#[derive(Debug, Clone, Copy)]
+pub struct CutInput<'a> {
+    pub samples: &'a [[f64; 3]],
+    pub segments: &'a [[u32; 2]],
+    /// The spline of each sample, to name it in errors.
+    pub sample_spline: &'a [u32],
+}
+
+/// Options of the cutter.
+#[derive(Debug, Clone, Copy)]
+#[non_exhaustive]
+pub struct CutOptions {
+    /// Vertex/edge snapping tolerance relative to the bounding-box diagonal
+    /// (paper: 0.001 %).
+    pub snap_tolerance: f64,
+    /// Largest allowed distance from a sample to the surface, relative to
+    /// the bounding-box diagonal.
+    pub max_projection_distance: f64,
+}
+
+/// The paper's snapping tolerance: 0.001 % of the bounding-box diagonal.
+pub const DEFAULT_SNAP_TOLERANCE: f64 = 1e-5;
+/// Samples farther than 5 % of the diagonal from the surface are refused.
+pub const DEFAULT_MAX_PROJECTION_DISTANCE: f64 = 0.05;
+
+impl Default for CutOptions {
+    fn default() -> Self {
+        Self { snap_tolerance: DEFAULT_SNAP_TOLERANCE, max_projection_distance: DEFAULT_MAX_PROJECTION_DISTANCE }
+    }
+}
+
+/// A cut-vertex.
+#[derive(Debug, Clone, Copy)]
+pub struct CutVertex {
+    pub loc: Location,
+    /// Position in the projection pose.
+    pub pos: DVec3,
+    /// [`MESH_VERTEX`] | [`SAMPLE`] | [`CROSSING`].
+    pub mask: u8,
+    pub curve: CurvePoint,
+}
+
+/// The cut-mesh. Immutable once built.
+#[derive(Debug, Clone)]
+pub struct CutMesh {
+    pub(crate) vertices: Vec<CutVertex>,
+    /// Per halfedge: tail cut-vertex.
+    pub(crate) tail: Vec<u32>,
+    /// Per halfedge: the opposite halfedge (in the same cut-face for a crack), or INVALID on the mesh boundary.
+    pub(crate) twin: Vec<u32>,
+    /// Per halfedge: its cut-face.
+    pub(crate) face: Vec<u32>,
+    /// Per halfedge: the curvenet segment it runs along, or INVALID.
+    pub(crate) segment: Vec<u32>,
+    /// Per halfedge: whether it runs in the segment's direction.
+    pub(crate) forward: Vec<bool>,
+    /// Cut-face `f` owns halfedges `face_start[f]..face_start[f + 1]`.
+    pub(crate) face_start: Vec<u32>,
+    /// Parent (input) face of every cut-face.
+    pub(crate) parent: Vec<u32>,
+    /// The cut-vertex of every sample, or INVALID when it was removed with an island.
+    pub(crate) sample_vertex: Vec<u32>,
+    pub(crate) n_cracks: usize,
+    pub(crate) n_islands_removed: usize,
+    pub(crate) n_islands_samples: usize,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Piece {
+    a: u32,
+    b: u32,
+    face: u32,
+    segment: u32,
+}
+
+impl CutMesh {
+    /// Cuts `surface` by the segments of `input`.
+    pub fn new(surface: &Surface, input: CutInput<'_>, options: &CutOptions) -> Result<Self> {
+        let tol = options.snap_tolerance * surface.diagonal;
+        let mut reg = Registry::new(surface);
+        // 1. Samples.
+        let mut sample_vertex = Vec::with_capacity(input.samples.len());
+        for (i, q) in input.samples.iter().enumerate() {
+            let hit = surface.bvh.closest_point(*q)?;
+            let limit = options.max_projection_distance * surface.diagonal;
+            if hit.distance > limit {
+                return Err(Error::SampleFarFromSurface {
+                    sample: i as u32,
+                    spline: input.sample_spline.get(i).copied().unwrap_or(u32::MAX),
+                    distance: hit.distance,
+                    limit,
+                });
+            }
+            let f = hit.face;
+            let tri = surface.triangles[hit.triangle as usize];
+            let p2: DVec2 = (0..3).map(|k| surface.corners_2d[tri[k] as usize] * hit.barycentric[k]).sum();
+            let loc = surface.locate_in_face(f, p2, tol);
+            let cv = reg.insert(loc, tol);
+            let v = &mut reg.vertices[cv as usize];
+            if v.mask & (SAMPLE | CROSSING) == 0 {
+                v.curve = CurvePoint::Sample(i as u32);
+            }
+            v.mask |= SAMPLE;
+            sample_vertex.push(cv);
+        }
+        // 2. Segments.
+        let mut pieces = Vec::new();
+        let mut path = Path::default();
+        for (s, &[i, j]) in input.segments.iter().enumerate() {
+            let (ca, cb) = (sample_vertex[i as usize], sample_vertex[j as usize]);
+            if ca == cb {
+                continue; // both samples project to one point: nothing to insert
+            }
+            let (la, lb) = (reg.vertices[ca as usize].loc, reg.vertices[cb as usize].loc);
+            surface.trace(la, lb, tol, &mut path).map_err(|why| {
+                let spline = input.sample_spline.get(i as usize).copied().unwrap_or(u32::MAX);
+                match why {
+                    TraceFailure::LeftTheSurface => Error::SegmentLeavesSurface { segment: s as u32, spline },
+                    TraceFailure::Lost => Error::SegmentNotTraced { segment: s as u32, spline },
+                }
+            })?;
+            // Arc-length fractions of the path points.
+            let pos: Vec<DVec3> = path.points.iter().map(|&l| surface.position(l)).collect();
+            let total: f64 = pos.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            let mut prev = ca;
+            let mut acc = 0.0;
+            for k in 1..path.points.len() {
+                acc += (pos[k] - pos[k - 1]).length();
+                let cv = if k + 1 == path.points.len() {
+                    cb
+                } else {
+                    let cv = reg.insert(path.points[k], tol);
+                    let v = &mut reg.vertices[cv as usize];
+                    if v.mask & (SAMPLE | CROSSING) != 0 {
+                        return Err(Error::CurvesOverlap { segment: s as u32, other: reg.segment_at(cv, input) });
+                    }
+                    v.mask |= CROSSING;
+                    v.curve = CurvePoint::Crossing { segment: s as u32, t: acc / total };
+                    cv
+                };
+                if cv != prev {
+                    pieces.push(Piece { a: prev, b: cv, face: path.faces[k - 1], segment: s as u32 });
+                }
+                prev = cv;
+            }
+        }
+        reg.build(surface, input, pieces, sample_vertex)
+    }
+
+    pub fn n_vertices(&self) -> usize {
+        self.vertices.len()
+    }
+    pub fn n_halfedges(&self) -> usize {
+        self.tail.len()
+    }
+    pub fn n_faces(&self) -> usize {
+        self.parent.len()
+    }
+    pub fn vertex(&self, v: u32) -> &CutVertex {
+        &self.vertices[v as usize]
+    }
+    pub fn tail(&self, h: u32) -> u32 {
+        self.tail[h as usize]
+    }
+    pub fn head(&self, h: u32) -> u32 {
+        self.tail[self.next(h) as usize]
+    }
+    pub fn next(&self, h: u32) -> u32 {
+        let f = self.face[h as usize] as usize;
+        if h + 1 == self.face_start[f + 1] { self.face_start[f] } else { h + 1 }
+    }
+    pub fn prev(&self, h: u32) -> u32 {
+        let f = self.face[h as usize] as usize;
+        if h == self.face_start[f] { self.face_start[f + 1] - 1 } else { h - 1 }
+    }
+    pub fn twin(&self, h: u32) -> u32 {
+        self.twin[h as usize]
+    }
+    pub fn face(&self, h: u32) -> u32 {
+        self.face[h as usize]
+    }
+    /// The halfedges (= corners) of cut-face `f`, in loop order.
+    pub fn face_halfedges(&self, f: u32) -> std::ops::Range<u32> {
+        self.face_start[f as usize]..self.face_start[f as usize + 1]
+    }
+    /// The input face cut-face `f` lies in.
+    pub fn parent(&self, f: u32) -> u32 {
+        self.parent[f as usize]
+    }
+    /// The segment halfedge `h` runs along and whether it runs forward, if any.
+    pub fn segment(&self, h: u32) -> Option<(u32, bool)> {
+        let s = self.segment[h as usize];
+        (s != INVALID).then(|| (s, self.forward[h as usize]))
+    }
+    /// The cut-vertex of sample `i`, if it was not removed with an island.
+    pub fn sample_vertex(&self, i: u32) -> Option<u32> {
+        let v = self.sample_vertex[i as usize];
+        (v != INVALID).then_some(v)
+    }
+    /// Number of cracks: edges whose two halfedges bound the same cut-face.
+    pub fn n_cracks(&self) -> usize {
+        self.n_cracks
+    }
+    /// Number of islands (chord clusters inside one face) removed, and the samples they held.
+    pub fn islands_removed(&self) -> (usize, usize) {
+        (self.n_islands_removed, self.n_islands_samples)
+    }
+}
+
+/// Cut-vertices under construction, merged by location.
+struct Registry<'s> {
+    surface: &'s Surface,
+    vertices: Vec<CutVertex>,
+    /// Per canonical halfedge: (t, cut-vertex).
+    on_edge: HashMap<u32, Vec<(f64, u32)>>,
+    /// Per face: cut-vertices inside it.
+    in_face: HashMap<u32, Vec<u32>>,
+}
+
+impl<'s> Registry<'s> {
+    fn new(surface: &'s Surface) -> Self {
+        let vertices = (0..surface.mesh.n_vertices() as u32)
+            .map(|v| CutVertex {
+                loc: Location::Vertex(v),
+                pos: surface.points[v as usize],
+                mask: MESH_VERTEX,
+                curve: CurvePoint::None,
+            })
+            .collect();
+        Self { surface, vertices, on_edge: HashMap::new(), in_face: HashMap::new() }
+    }
+
+    /// The cut-vertex at `loc`, merging with one closer than `tol`.
+    fn insert(&mut self, loc: Location, tol: f64) -> u32 {
+        let pos = self.surface.position(loc);
+        let new_id = self.vertices.len() as u32;
+        match loc {
+            Location::Vertex(v) => return v,
+            Location::Edge { h, .. } => {
+                let list = self.on_edge.entry(h).or_default();
+                if let Some(&(_, id)) = list.iter().find(|&&(_, id)| (self.vertices[id as usize].pos - pos).length() <= tol) {
+                    return id;
+                }
+                let Location::Edge { t, .. } = loc else { unreachable!() };
+                list.push((t, new_id));
+            }
+            Location::Face { face, .. } => {
+                let list = self.in_face.entry(face).or_default();
+                if let Some(&id) = list.iter().find(|&&id| (self.vertices[id as usize].pos - pos).length() <= tol) {
+                    return id;
+                }
+                list.push(new_id);
+            }
+        }
+        self.vertices.push(CutVertex { loc, pos, mask: 0, curve: CurvePoint::None });
+        new_id
+    }
+
+    /// A segment through cut-vertex `cv`, for naming an overlap.
+    fn segment_at(&self, cv: u32, input: CutInput<'_>) -> u32 {
+        match self.vertices[cv as usize].curve {
+            CurvePoint::Crossing { segment, .. } => segment,
+            CurvePoint::Sample(i) => input.segments.iter().position(|s| s.contains(&i)).map_or(u32::MAX, |s| s as u32),
+            CurvePoint::None => u32::MAX,
+        }
+    }
+
+    /// Whether `a` and `b` lie on one edge of face `f`: that edge's canonical halfedge.
+    fn common_edge(&self, f: u32, a: u32, b: u32) -> Option<u32> {
+        let s = self.surface;
+        let he = &s.halfedges;
+        let on = |loc: Location, h: u32| match loc {
+            Location::Vertex(v) => he.tail(h) == v || he.head(h) == v,
+            Location::Edge { h: c, .. } => c == s.canonical(h),
+            Location::Face { .. } => false,
+        };
+        let (la, lb) = (self.vertices[a as usize].loc, self.vertices[b as usize].loc);
+        he.face_halfedges(f).find(|&h| on(la, h) && on(lb, h)).map(|h| s.canonical(h))
+    }
+
+    fn build(mut self, surface: &Surface, input: CutInput<'_>, pieces: Vec<Piece>, mut sample_vertex: Vec<u32>) -> Result<CutMesh> {
+        let he = &surface.halfedges;
+        for list in self.on_edge.values_mut() {
+            list.sort_by(|x, y| x.0.total_cmp(&y.0));
+        }
+        // Split pieces into chords (per face) and pieces along edges (per canonical edge).
+        let mut chords: HashMap<u32, Vec<Piece>> = HashMap::new();
+        let mut along: HashMap<(u32, u32), u32> = HashMap::new(); // (cv, cv) on an edge -> segment, directed a->b
+        for p in &pieces {
+            if let Some(c) = self.common_edge(p.face, p.a, p.b) {
+                // Every sub-piece of the edge between a and b runs along the segment.
+                let t_of = |v: u32| -> f64 {
+                    match self.vertices[v as usize].loc {
+                        Location::Vertex(x) => if he.tail(c) == x { 0.0 } else { 1.0 },
+                        Location::Edge { t, .. } => t,
+                        Location::Face { .. } => unreachable!(),
+                    }
+                };
+                let (ta, tb) = (t_of(p.a), t_of(p.b));
+                let mut chain = vec![(0.0, he.tail(c))];
+                chain.extend(self.on_edge.get(&c).into_iter().flatten().copied());
+                chain.push((1.0, he.head(c)));
+                let (lo, hi) = (ta.min(tb), ta.max(tb));
+                let inside: Vec<u32> = chain.iter().filter(|(t, _)| *t >= lo && *t <= hi).map(|x| x.1).collect();
+                for w in inside.windows(2) {
+                    let (x, y) = if ta <= tb { (w[0], w[1]) } else { (w[1], w[0]) };
+                    along.insert((x, y), p.segment);
+                }
+            } else {
+                chords.entry(p.face).or_default().push(*p);
+            }
+        }
+
+        let mut out = Builder::default();
+        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut removed_vertices = vec![false; self.vertices.len()];
+        let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
+        let mut pslg = Pslg::default();
+        for f in 0..surface.mesh.n_faces() as u32 {
+            pslg.clear();
+            // Boundary nodes, counter-clockwise.
+            for h in he.face_halfedges(f) {
+                pslg.node(he.tail(h), surface.position_2d(f, Location::Vertex(he.tail(h))), true);
+                let c = surface.canonical(h);
+                if let Some(list) = self.on_edge.get(&c) {
+                    let iter: Box<dyn Iterator<Item = &(f64, u32)>> =
+                        if c == h { Box::new(list.iter()) } else { Box::new(list.iter().rev()) };
+                    for &(_, v) in iter {
+                        pslg.node(v, surface.position_2d(f, self.vertices[v as usize].loc), true);
+                    }
+                }
+            }
+            let nb = pslg.pos.len() as u32;
+            for k in 0..nb {
+                pslg.edge(k, (k + 1) % nb, INVALID, false);
+            }
+            if let Some(list) = chords.get(&f) {
+                for p in list {
+                    let (a, b) = (p.a, p.b);
+                    let la = pslg.node(a, surface.position_2d(f, self.vertices[a as usize].loc), false);
+                    let lb = pslg.node(b, surface.position_2d(f, self.vertices[b as usize].loc), false);
+                    pslg.edge(la, lb, p.segment, true);
+                }
+            }
+            pslg.check_crossings(f)?;
+            let islands = pslg.remove_islands(nb);
+            for &v in &islands.removed_nodes {
+                removed_vertices[pslg.cut_vertex[v as usize] as usize] = true;
+            }
+            n_islands += islands.count;
+            pslg.trace_faces(f)?;
+            // Emit loops.
+            for lp in &pslg.loops {
+                let face_id = out.parent.len() as u32;
+                out.parent.push(f);
+                for &e in lp {
+                    let (a, b) = pslg.halfedge_ends(e);
+                    let (ca, cb) = (pslg.cut_vertex[a as usize], pslg.cut_vertex[b as usize]);
+                    let gh = out.tail.len() as u32;
+                    pslg.global[e as usize] = gh;
+                    out.tail.push(ca);
+                    out.face.push(face_id);
+                    let (seg, fwd) = pslg.annotation(e, input, &along, ca, cb);
+                    out.segment.push(seg);
+                    out.forward.push(fwd);
+                    out.twin.push(INVALID);
+                    if pslg.is_boundary(e) {
+                        boundary_key.insert((ca, cb), gh);
+                    }
+                }
+                out.face_start.push(out.tail.len() as u32);
+            }
+            // Chord twins within the face.
+            for e in 0..pslg.n_halfedges() as u32 {
+                if !pslg.is_boundary(e) && !pslg.dead(e) {
+                    let (g, t) = (pslg.global[e as usize], pslg.global[(e ^ 1) as usize]);
+                    out.twin[g as usize] = t;
+                    if out.face[g as usize] == out.face[t as usize] && e % 2 == 0 {
+                        out.n_cracks += 1;
+                    }
+                }
+            }
+        }
+        // Boundary twins across input edges.
+        for (&(a, b), &g) in &boundary_key {
+            if let Some(&t) = boundary_key.get(&(b, a)) {
+                out.twin[g as usize] = t;
+            }
+        }
+        for (i, v) in sample_vertex.iter_mut().enumerate() {
+            if removed_vertices[*v as usize] {
+                *v = INVALID;
+                n_island_samples += 1;
+                let _ = i;
+            }
+        }
+        Ok(CutMesh {
+            vertices: self.vertices,
+            tail: out.tail,
+            twin: out.twin,
+            face: out.face,
+            segment: out.segment,
+            forward: out.forward,
+            face_start: out.face_start,
+            parent: out.parent,
+            sample_vertex,
+            n_cracks: out.n_cracks,
+            n_islands_removed: n_islands,
+            n_islands_samples: n_island_samples,
+        })
+    }
+}
+
+#[derive(Default)]
+struct Builder {
+    tail: Vec<u32>,
+    twin: Vec<u32>,
+    face: Vec<u32>,
+    segment: Vec<u32>,
+    forward: Vec<bool>,
+    face_start: Vec<u32>,
+    parent: Vec<u32>,
+    n_cracks: usize,
+}
+
+impl Builder {
+    fn default() -> Self {
+        Self { face_start: vec![0], ..Default::default() }
+    }
+}
+
+struct Islands {
+    count: usize,
+    removed_nodes: Vec<u32>,
+}
+
+/// The planar straight-line graph of one input face.
+#[derive(Default)]
+struct Pslg {
+    cut_vertex: Vec<u32>,
+    pos: Vec<DVec2>,
+    local: HashMap<u32, u32>,
+    /// Halfedges in pairs (2k, 2k+1); boundary edges use only 2k.
+    from: Vec<u32>,
+    seg: Vec<u32>,
+    boundary: Vec<bool>,
+    alive: Vec<bool>,
+    /// Outgoing halfedges per node, sorted by angle.
+    out: Vec<Vec<u32>>,
+    next: Vec<u32>,
+    loops: Vec<Vec<u32>>,
+    global: Vec<u32>,
+}
+
+impl Pslg {
+    fn clear(&mut self) {
+        self.cut_vertex.clear();
+        self.pos.clear();
+        self.local.clear();
+        self.from.clear();
+        self.seg.clear();
+        self.boundary.clear();
+        self.alive.clear();
+        self.out.clear();
+        self.next.clear();
+        self.loops.clear();
+        self.global.clear();
+    }
+
+    fn node(&mut self, cv: u32, p: DVec2, _on_boundary: bool) -> u32 {
+        if let Some(&k) = self.local.get(&cv) {
+            return k;
+        }
+        let k = self.cut_vertex.len() as u32;
+        self.cut_vertex.push(cv);
+        self.pos.push(p);
+        self.local.insert(cv, k);
+        k
+    }
+
+    /// Adds edge a-b (boundary: only a->b is a halfedge of this face).
+    fn edge(&mut self, a: u32, b: u32, segment: u32, chord: bool) {
+        self.from.push(a);
+        self.from.push(b);
+        self.seg.push(segment);
+        self.seg.push(segment);
+        self.boundary.push(!chord);
+        self.boundary.push(!chord);
+        self.alive.push(true);
+        self.alive.push(chord);
+    }
+
+    fn n_halfedges(&self) -> usize {
+        self.from.len()
+    }
+    fn is_boundary(&self, e: u32) -> bool {
+        self.boundary[e as usize]
+    }
+    fn dead(&self, e: u32) -> bool {
+        !self.alive[e as usize]
+    }
+    fn halfedge_ends(&self, e: u32) -> (u32, u32) {
+        (self.from[e as usize], self.from[(e ^ 1) as usize])
+    }
+
+    /// Chords that cross each other or a boundary piece inside the face.
+    fn check_crossings(&self, f: u32) -> Result<()> {
+        let n_edges = self.from.len() / 2;
+        for i in 0..n_edges {
+            if self.boundary[2 * i] {
+                continue;
+            }
+            let (a, b) = (self.from[2 * i], self.from[2 * i + 1]);
+            for j in 0..n_edges {
+                if j == i || (j < i && !self.boundary[2 * j]) {
+                    continue;
+                }
+                let (c, d) = (self.from[2 * j], self.from[2 * j + 1]);
+                if a == c || a == d || b == c || b == d {
+                    continue; // sharing a node
+                }
+                if segments_cross(self.pos[a as usize], self.pos[b as usize], self.pos[c as usize], self.pos[d as usize]) {
+                    return Err(if self.boundary[2 * j] {
+                        Error::SegmentCrossesFaceBoundary { segment: self.seg[2 * i], face: f }
+                    } else {
+                        Error::CurvesCross { segment: self.seg[2 * i], other: self.seg[2 * j], face: f }
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Removes chord clusters that touch no boundary node (the first `nb` nodes).
+    fn remove_islands(&mut self, nb: u32) -> Islands {
+        let n = self.pos.len();
+        let mut comp: Vec<u32> = (0..n as u32).collect();
+        fn find(c: &mut [u32], mut x: u32) -> u32 {
+            while c[x as usize] != x {
+                c[x as usize] = c[c[x as usize] as usize];
+                x = c[x as usize];
+            }
+            x
+        }
+        for e in (0..self.from.len()).step_by(2) {
+            let (a, b) = (find(&mut comp, self.from[e]), find(&mut comp, self.from[e + 1]));
+            comp[a as usize] = b;
+        }
+        let mut touches = vec![false; n];
+        for k in 0..nb {
+            let r = find(&mut comp, k);
+            touches[r as usize] = true;
+        }
+        let mut removed_nodes = Vec::new();
+        let mut roots = Vec::new();
+        for k in nb..n as u32 {
+            let r = find(&mut comp, k);
+            if !touches[r as usize] {
+                removed_nodes.push(k);
+                if !roots.contains(&r) {
+                    roots.push(r);
+                }
+            }
+        }
+        for e in 0..self.from.len() {
+            if removed_nodes.contains(&self.from[e]) {
+                self.alive[e] = false;
+            }
+        }
+        Islands { count: roots.len(), removed_nodes }
+    }
+
+    /// Sorts halfedges around nodes and follows them into loops.
+    fn trace_faces(&mut self, f: u32) -> Result<()> {
+        let n = self.pos.len();
+        self.out = vec![Vec::new(); n];
+        // Rays at each node: every live edge end (including the boundary edge
+        // arriving at the node, whose reverse is not a halfedge here).
+        let mut rays: Vec<Vec<(f64, u32)>> = vec![Vec::new(); n];
+        for e in 0..self.from.len() {
+            let (a, b) = (self.from[e], self.from[e ^ 1]);
+            let live_edge = self.alive[e & !1];
+            if !live_edge {
+                continue;
+            }
+            let d = self.pos[b as usize] - self.pos[a as usize];
+            rays[a as usize].push((d.y.atan2(d.x), e as u32));
+        }
+        for r in &mut rays {
+            r.sort_by(|x, y| x.0.total_cmp(&y.0));
+        }
+        self.next = vec![INVALID; self.from.len()];
+        self.global = vec![INVALID; self.from.len()];
+        for e in 0..self.from.len() {
+            if !self.alive[e] {
+                continue;
+            }
+            // e: a -> b. At b, find the ray b -> a, take the one just clockwise of it.
+            let b = self.from[e ^ 1] as usize;
+            let back = (e ^ 1) as u32;
+            let r = &rays[b];
+            let k = r.iter().position(|x| x.1 == back).expect("every edge has its reverse ray");
+            let m = r.len();
+            let nxt = r[(k + m - 1) % m].1;
+            if !self.alive[nxt as usize] {
+                return Err(Error::Internal { what: format!("cut-face tracing in face {f} walked outside the face") });
+            }
+            self.next[e] = nxt;
+        }
+        let mut seen = vec![false; self.from.len()];
+        for e in 0..self.from.len() {
+            if !self.alive[e] || seen[e] {
+                continue;
+            }
+            let mut lp = Vec::new();
+            let mut x = e as u32;
+            while !seen[x as usize] {
+                seen[x as usize] = true;
+                lp.push(x);
+                x = self.next[x as usize];
+            }
+            if x != e as u32 {
+                return Err(Error::Internal { what: format!("cut-face tracing in face {f} did not close a loop") });
+            }
+            self.loops.push(lp);
+        }
+        Ok(())
+    }
+
+    /// The segment a halfedge runs along, and whether forward.
+    fn annotation(&self, e: u32, input: CutInput<'_>, along: &HashMap<(u32, u32), u32>, ca: u32, cb: u32) -> (u32, bool) {
+        if !self.is_boundary(e) {
+            let s = self.seg[e as usize];
+            // Chord pairs were added a->b along the segment: even halfedges run forward.
+            return (s, e % 2 == 0);
+        }
+        let _ = input;
+        if let Some(&s) = along.get(&(ca, cb)) {
+            return (s, true);
+        }
+        if let Some(&s) = along.get(&(cb, ca)) {
+            return (s, false);
+        }
+        (INVALID, false)
+    }
+}

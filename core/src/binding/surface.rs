@@ -1,0 +1,250 @@
+//! The surface a curvenet is bound to: the input polygon mesh in the
+//! projection pose, with a plane per face in which its cut-faces are built.
+//!
+//! Every face gets a 2D frame (origin at its first corner, axes orthonormal
+//! to its vector-area normal) and its corners' positions in that frame. A
+//! non-planar face is flattened by orthogonal projection onto that plane;
+//! the projected polygon must be simple and counter-clockwise (a face folded
+//! over itself under projection is refused, naming it). Faces are
+//! triangulated in 2D (fan when convex, ear clipping otherwise), so every
+//! point inside a face has barycentric coordinates in one of its triangles
+//! that give both its 3D position on the surface and its 2D position in the
+//! face's plane, consistently.
+
+use glam::{DVec2, DVec3};
+
+use crate::closest_point::ClosestPointBvh;
+use crate::error::{Error, Result};
+use crate::halfedge::Halfedges;
+use crate::mesh::{PolyMesh, bounding_box_diagonal};
+use crate::polygon_laplacian::vector_area;
+
+/// A face's plane: `x ≈ origin + s u + t v`.
+#[derive(Debug, Clone, Copy)]
+pub struct FacePlane {
+    pub origin: DVec3,
+    pub u: DVec3,
+    pub v: DVec3,
+    pub normal: DVec3,
+}
+
+impl FacePlane {
+    /// Orthogonal projection of `x` into the plane's 2D coordinates.
+    pub fn to_2d(&self, x: DVec3) -> DVec2 {
+        let d = x - self.origin;
+        DVec2::new(d.dot(self.u), d.dot(self.v))
+    }
+}
+
+/// The mesh in the projection pose, prepared for binding. Immutable.
+#[derive(Debug, Clone)]
+pub struct Surface {
+    pub(crate) mesh: PolyMesh,
+    pub(crate) halfedges: Halfedges,
+    pub(crate) points: Vec<DVec3>,
+    pub(crate) planes: Vec<FacePlane>,
+    /// 2D position of every face corner (indexed like halfedges: corner h of
+    /// face f is halfedge h).
+    pub(crate) corners_2d: Vec<DVec2>,
+    /// Triangles as face-corner (halfedge) indices.
+    pub(crate) triangles: Vec<[u32; 3]>,
+    /// Face `f`'s triangles are `face_tri_start[f]..face_tri_start[f + 1]`.
+    pub(crate) face_tri_start: Vec<u32>,
+    /// Outgoing halfedges of each vertex (CSR by `vertex_out_start`).
+    pub(crate) vertex_out: Vec<u32>,
+    pub(crate) vertex_out_start: Vec<u32>,
+    pub(crate) bvh: ClosestPointBvh,
+    pub(crate) diagonal: f64,
+    pub(crate) mean_edge_length: f64,
+}
+
+impl Surface {
+    /// Validates and prepares `mesh` posed at `points`. Errors name the
+    /// offending face, edge or vertex: non-finite points, non-manifold or
+    /// inconsistently oriented connectivity, zero-area faces, faces that
+    /// fold over themselves in their own plane.
+    pub fn new(mesh: &PolyMesh, points: &[[f64; 3]]) -> Result<Self> {
+        mesh.check_points(points, "mesh point")?;
+        let halfedges = Halfedges::new(mesh)?;
+        let p: Vec<DVec3> = points.iter().map(|&x| DVec3::from_array(x)).collect();
+        let diagonal = bounding_box_diagonal(points);
+        let mut planes = Vec::with_capacity(mesh.n_faces());
+        let mut corners_2d = Vec::with_capacity(halfedges.n_halfedges());
+        let mut triangles = Vec::with_capacity(halfedges.n_halfedges());
+        let mut corners3 = Vec::new();
+        let mut scratch = Vec::new();
+        let mut face_tri_start = vec![0u32];
+        for (f, face) in mesh.faces().enumerate() {
+            corners3.clear();
+            corners3.extend(face.iter().map(|&v| p[v as usize]));
+            let va = vector_area(&corners3);
+            let area = va.length();
+            let extent = corners3.iter().map(|c| (*c - corners3[0]).length()).fold(0.0, f64::max);
+            if !(area > 1e-12 * extent * extent) || extent == 0.0 {
+                return Err(Error::ZeroAreaFace { face: f, area });
+            }
+            let normal = va / area;
+            let u = (corners3[1] - corners3[0]).reject_from(normal).normalize_or_zero();
+            let u = if u == DVec3::ZERO { normal.any_orthonormal_vector() } else { u };
+            let plane = FacePlane { origin: corners3[0], u, v: normal.cross(u), normal };
+            let start = corners_2d.len() as u32;
+            corners_2d.extend(corners3.iter().map(|&c| plane.to_2d(c)));
+            let poly = &corners_2d[start as usize..];
+            if signed_area(poly) <= 0.0 || !is_simple(poly) {
+                return Err(Error::FoldedFace { face: f });
+            }
+            triangulate(poly, &mut scratch).ok_or(Error::FoldedFace { face: f })?;
+            triangles.extend(scratch.iter().map(|t| t.map(|k| start + k)));
+            face_tri_start.push(triangles.len() as u32);
+            planes.push(plane);
+        }
+        let vertex_of = |h: u32| halfedges.tail(h);
+        let tri_vertices: Vec<([u32; 3], u32)> =
+            triangles.iter().map(|t| (t.map(vertex_of), halfedges.face(t[0]))).collect();
+        let bvh = ClosestPointBvh::from_triangles(points, &tri_vertices)?;
+        let mean_edge_length = mesh.mean_edge_length(points);
+        let mut vertex_out_start = vec![0u32; mesh.n_vertices() + 1];
+        for h in 0..halfedges.n_halfedges() as u32 {
+            vertex_out_start[halfedges.tail(h) as usize + 1] += 1;
+        }
+        for v in 0..mesh.n_vertices() {
+            vertex_out_start[v + 1] += vertex_out_start[v];
+        }
+        let mut fill = vertex_out_start.clone();
+        let mut vertex_out = vec![0u32; halfedges.n_halfedges()];
+        for h in 0..halfedges.n_halfedges() as u32 {
+            let v = halfedges.tail(h) as usize;
+            vertex_out[fill[v] as usize] = h;
+            fill[v] += 1;
+        }
+        Ok(Self {
+            mesh: mesh.clone(),
+            halfedges,
+            points: p,
+            planes,
+            corners_2d,
+            triangles,
+            face_tri_start,
+            vertex_out,
+            vertex_out_start,
+            bvh,
+            diagonal,
+            mean_edge_length,
+        })
+    }
+
+    pub fn mesh(&self) -> &PolyMesh {
+        &self.mesh
+    }
+    pub fn halfedges(&self) -> &Halfedges {
+        &self.halfedges
+    }
+    /// Length of the bounding-box diagonal in the projection pose.
+    pub fn diagonal(&self) -> f64 {
+        self.diagonal
+    }
+    pub fn mean_edge_length(&self) -> f64 {
+        self.mean_edge_length
+    }
+    pub fn closest_points(&self) -> &ClosestPointBvh {
+        &self.bvh
+    }
+}
+
+/// Twice-free signed area of a 2D polygon (positive when counter-clockwise).
+pub(crate) fn signed_area(poly: &[DVec2]) -> f64 {
+    let n = poly.len();
+    0.5 * (0..n).map(|i| poly[i].perp_dot(poly[(i + 1) % n])).sum::<f64>()
+}
+
+/// No two non-adjacent edges of the polygon intersect (O(n²); faces are small).
+fn is_simple(poly: &[DVec2]) -> bool {
+    let n = poly.len();
+    if n <= 3 {
+        return true;
+    }
+    for i in 0..n {
+        for j in i + 1..n {
+            if j == i + 1 || (i == 0 && j == n - 1) {
+                continue;
+            }
+            if segments_cross(poly[i], poly[(i + 1) % n], poly[j], poly[(j + 1) % n]) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+fn orient(a: DVec2, b: DVec2, c: DVec2) -> f64 {
+    (b - a).perp_dot(c - a)
+}
+
+/// Whether closed segments ab and cd intersect (touching counts).
+pub(crate) fn segments_cross(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
+    let (o1, o2, o3, o4) = (orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b));
+    if ((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0)) && ((o3 > 0.0 && o4 < 0.0) || (o3 < 0.0 && o4 > 0.0)) {
+        return true;
+    }
+    let on = |p: DVec2, q: DVec2, r: DVec2, o: f64| {
+        o == 0.0 && r.x >= p.x.min(q.x) && r.x <= p.x.max(q.x) && r.y >= p.y.min(q.y) && r.y <= p.y.max(q.y)
+    };
+    on(a, b, c, o1) || on(a, b, d, o2) || on(c, d, a, o3) || on(c, d, b, o4)
+}
+
+/// Triangulates a simple counter-clockwise polygon into `out` (corner
+/// indices): a fan when convex, ear clipping otherwise. `None` if no ear is
+/// found (a degenerate polygon).
+pub(crate) fn triangulate(poly: &[DVec2], out: &mut Vec<[u32; 3]>) -> Option<()> {
+    out.clear();
+    let n = poly.len();
+    let convex = (0..n).all(|i| orient(poly[(i + n - 1) % n], poly[i], poly[(i + 1) % n]) > 0.0);
+    if convex {
+        out.extend((1..n as u32 - 1).map(|k| [0, k, k + 1]));
+        return Some(());
+    }
+    let mut idx: Vec<u32> = (0..n as u32).collect();
+    while idx.len() > 3 {
+        let m = idx.len();
+        let ear = (0..m).find(|&i| {
+            let (a, b, c) = (poly[idx[(i + m - 1) % m] as usize], poly[idx[i] as usize], poly[idx[(i + 1) % m] as usize]);
+            orient(a, b, c) > 0.0
+                && idx.iter().all(|&k| {
+                    let p = poly[k as usize];
+                    p == a || p == b || p == c || !(orient(a, b, p) >= 0.0 && orient(b, c, p) >= 0.0 && orient(c, a, p) >= 0.0)
+                })
+        })?;
+        out.push([idx[(ear + m - 1) % m], idx[ear], idx[(ear + 1) % m]]);
+        idx.remove(ear);
+    }
+    out.push([idx[0], idx[1], idx[2]]);
+    Some(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ear_clipping_tiles_a_nonconvex_polygon() {
+        // An L-shape (counter-clockwise).
+        let l = [(0., 0.), (2., 0.), (2., 1.), (1., 1.), (1., 2.), (0., 2.)].map(|(x, y)| DVec2::new(x, y));
+        let mut tris = Vec::new();
+        triangulate(&l, &mut tris).unwrap();
+        assert_eq!(tris.len(), 4);
+        let total: f64 = tris.iter().map(|t| signed_area(&t.map(|k| l[k as usize]))).sum();
+        assert!((total - 3.0).abs() < 1e-12);
+        assert!(tris.iter().all(|t| signed_area(&t.map(|k| l[k as usize])) > 0.0));
+    }
+
+    #[test]
+    fn folded_and_zero_area_faces_are_named() {
+        let pts = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.], [2., 0., 0.]];
+        // A bowtie quad 0-1-3-2 folds over itself.
+        let m = PolyMesh::new(&[4], &[0, 1, 3, 2], 5).unwrap();
+        assert!(matches!(Surface::new(&m, &pts), Err(Error::FoldedFace { face: 0 })));
+        // Collinear triangle 0-1-4.
+        let m = PolyMesh::new(&[3, 3], &[0, 1, 2, 0, 4, 1], 5).unwrap();
+        assert!(matches!(Surface::new(&m, &pts), Err(Error::ZeroAreaFace { face: 1, .. })));
+    }
+}
