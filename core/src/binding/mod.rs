@@ -536,8 +536,15 @@ impl Binding {
             self.factor.solve_in_place(rhs, work);
         }
     }
-    pub(crate) fn position(&self, v: u32) -> DVec3 {
-        self.cut.vertex(v).pos
+    /// The unknown of mesh vertex `v`, or `None` when it is on the
+    /// curvenet, in an untouched component or in no face.
+    pub fn vertex_unknown(&self, v: u32) -> Option<u32> {
+        let u = self.vertex_unknown[v as usize];
+        (u != INVALID).then_some(u)
+    }
+    /// The projected (closest surface) position p̌ of global sample `i`.
+    pub fn sample_projection(&self, i: u32) -> [f64; 3] {
+        self.sample_projection[i as usize].to_array()
     }
 }
 

@@ -240,9 +240,16 @@ mod tests {
     #[test]
     fn folded_and_zero_area_faces_are_named() {
         let pts = [[0., 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.], [2., 0., 0.]];
-        // A bowtie quad 0-1-3-2 folds over itself.
-        let m = PolyMesh::new(&[4], &[0, 1, 3, 2], 5).unwrap();
-        assert!(matches!(Surface::new(&m, &pts), Err(Error::FoldedFace { face: 0 })));
+        // A pentagram (corners of a regular pentagon visited with stride 2):
+        // positive vector area, but its edges cross.
+        let star: Vec<[f64; 3]> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (2 * k) as f64 / 5.0;
+                [a.cos(), a.sin(), 0.0]
+            })
+            .collect();
+        let m = PolyMesh::new(&[5], &[0, 1, 2, 3, 4], 5).unwrap();
+        assert!(matches!(Surface::new(&m, &star), Err(Error::FoldedFace { face: 0 })));
         // Collinear triangle 0-1-4.
         let m = PolyMesh::new(&[3, 3], &[0, 1, 2, 0, 4, 1], 5).unwrap();
         assert!(matches!(Surface::new(&m, &pts), Err(Error::ZeroAreaFace { face: 1, .. })));
