@@ -75,10 +75,10 @@ impl Bound {
     }
 
     pub fn deform(&self, pools: &[Vec<[f64; 3]>]) -> Vec<[f64; 3]> {
-        let refs: Vec<&[[f64; 3]]> = pools.iter().map(|p| p.as_slice()).collect();
+        let refs: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
         let mut ws = self.binding.workspace();
         let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
-        self.binding.deform(&refs, &mut ws, &mut out, None).unwrap();
+        self.binding.deform(&curvenet_core::FrameInput { posed: &refs, rest: None }, &mut ws, &mut out, None).unwrap();
         out
     }
 

@@ -64,6 +64,9 @@ pub enum Error {
     /// A matrix that must be symmetric positive definite is not (numerically).
     #[error("the system matrix is not positive definite")]
     NotPositiveDefinite,
+    /// A feature not available yet.
+    #[error("not supported yet: {what}")]
+    Unsupported { what: &'static str },
     /// A failure that is a bug in curvenet, not a problem with the input.
     #[error("internal error: {what}")]
     Internal { what: String },

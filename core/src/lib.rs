@@ -27,4 +27,4 @@ pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;
-pub use solve::Workspace;
+pub use solve::{FrameInput, Workspace};

@@ -14,6 +14,18 @@ use crate::binding::{Binding, Corner};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
 
+/// One frame's input.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct FrameInput<'a> {
+    /// The posed control-point pool of each bound curvenet, in binding
+    /// order (absolute positions); `None` for a curvenet that is not
+    /// articulated this frame, whose knots then track the rest pose.
+    pub posed: &'a [Option<&'a [[f64; 3]]>],
+    /// The mesh's rest pose this frame (skinning or cloth output, one point
+    /// per vertex); `None` for the projection pose.
+    pub rest: Option<&'a [[f64; 3]]>,
+}
+
 /// Reusable buffers of a frame solve, sized for one binding.
 #[derive(Debug, Clone)]
 pub struct Workspace {
@@ -62,17 +74,20 @@ impl Binding {
         self.layouts[k].sampling().n_points()
     }
 
-    /// Deforms the mesh for one frame: `posed[k]` is the posed control-point
-    /// pool of curvenet `k`. Writes the deformed points into `out` (one per
-    /// mesh vertex) and, if given, the per-vertex deformation gradients
-    /// (row-major 3×3) into `gradients`. The rest pose is the projection pose.
+    /// Deforms the mesh for one frame. Writes the deformed points into `out`
+    /// (one per mesh vertex) and, if given, the per-vertex deformation
+    /// gradients (row-major 3×3) into `gradients`.
     pub fn deform(
         &self,
-        posed: &[&[[f64; 3]]],
+        input: &FrameInput<'_>,
         ws: &mut Workspace,
         out: &mut [[f64; 3]],
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
+        let posed = input.posed;
+        if input.rest.is_some() {
+            return Err(Error::Unsupported { what: "a rest pose other than the projection pose" });
+        }
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch { what: "posed curvenets", expected: self.layouts.len(), got: posed.len() });
         }
@@ -81,7 +96,10 @@ impl Binding {
         }
         // Curvenet deformation (Algorithm 1, line 4) and f_c (line 5).
         for (k, layout) in self.layouts.iter().enumerate() {
-            layout.sampling().samples_into(posed[k], &mut ws.samples[k])?;
+            match posed[k] {
+                Some(pool) => layout.sampling().samples_into(pool, &mut ws.samples[k])?,
+                None => ws.samples[k].copy_from_slice(layout.neutral_samples()),
+            }
             scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k])?;
             deformation_gradients_into(layout, layout.neutral_frames(), &ws.frames[k], &mut ws.gradients[k])?;
             let range = self.nets[k];
