@@ -10,9 +10,10 @@
 
 use glam::{DMat3, DVec3};
 
-use crate::binding::{Binding, Corner};
+use crate::binding::{Binding, Corner, triangle_frame};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
+use crate::mesh::check_finite;
 
 /// One frame's input.
 #[derive(Debug, Clone, Copy, Default)]
@@ -39,6 +40,14 @@ pub struct Workspace {
     work9: Vec<[f64; 9]>,
     rhs3: Vec<[f64; 3]>,
     work3: Vec<[f64; 3]>,
+    // Rest-pose state (used when a frame brings its own rest pose).
+    tracked: Vec<Vec<[f64; 3]>>,
+    rest_samples: Vec<Vec<[f64; 3]>>,
+    rest_frames: Vec<Vec<[ScaledFrame; 2]>>,
+    rest_cut: Vec<DVec3>,
+    rest_corner_r: Vec<DVec3>,
+    rest_sample_offset: Vec<DVec3>,
+    rest_crossing_offset: Vec<DVec3>,
 }
 
 impl Binding {
@@ -56,6 +65,13 @@ impl Binding {
             work9: vec![[0.0; 9]; self.n_unknowns()],
             rhs3: vec![[0.0; 3]; self.n_unknowns()],
             work3: vec![[0.0; 3]; self.n_unknowns()],
+            tracked: self.layouts.iter().map(|l| vec![[0.0; 3]; l.sampling().n_points()]).collect(),
+            rest_samples: self.layouts.iter().map(|l| vec![[0.0; 3]; l.n_samples()]).collect(),
+            rest_frames: self.layouts.iter().map(|l| vec![[zero_frame; 2]; l.n_segments()]).collect(),
+            rest_cut: vec![DVec3::ZERO; self.cut.n_vertices()],
+            rest_corner_r: vec![DVec3::ZERO; self.cut.n_halfedges()],
+            rest_sample_offset: vec![DVec3::ZERO; self.sample_offset.len()],
+            rest_crossing_offset: vec![DVec3::ZERO; self.crossings.len()],
         }
     }
 
@@ -85,33 +101,45 @@ impl Binding {
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
         let posed = input.posed;
-        if input.rest.is_some() {
-            return Err(Error::Unsupported { what: "a rest pose other than the projection pose" });
-        }
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch { what: "posed curvenets", expected: self.layouts.len(), got: posed.len() });
         }
         if out.len() != self.n_vertices() {
             return Err(Error::CountMismatch { what: "output points", expected: self.n_vertices(), got: out.len() });
         }
+        if let Some(rest) = input.rest {
+            if rest.len() != self.n_vertices() {
+                return Err(Error::CountMismatch { what: "rest-pose points", expected: self.n_vertices(), got: rest.len() });
+            }
+            check_finite(rest, "rest-pose point")?;
+            self.warp_to_rest(rest, ws)?;
+        }
+        let rest_mode = input.rest.is_some();
         // Curvenet deformation (Algorithm 1, line 4) and f_c (line 5).
         for (k, layout) in self.layouts.iter().enumerate() {
-            match posed[k] {
-                Some(pool) => layout.sampling().samples_into(pool, &mut ws.samples[k])?,
-                None => ws.samples[k].copy_from_slice(layout.neutral_samples()),
+            match (posed[k], rest_mode) {
+                (Some(pool), _) => layout.sampling().samples_into(pool, &mut ws.samples[k])?,
+                (None, false) => ws.samples[k].copy_from_slice(layout.neutral_samples()),
+                (None, true) => ws.samples[k].copy_from_slice(&ws.rest_samples[k]),
             }
             scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k])?;
-            deformation_gradients_into(layout, layout.neutral_frames(), &ws.frames[k], &mut ws.gradients[k])?;
+            let rest_frames = if rest_mode { &ws.rest_frames[k][..] } else { layout.neutral_frames() };
+            deformation_gradients_into(layout, rest_frames, &ws.frames[k], &mut ws.gradients[k])?;
             let range = self.nets[k];
             let slots = range.slot as usize..range.slot as usize + layout.constraints().len();
             constraint_gradients_into(layout.constraints(), &ws.gradients[k], &mut ws.slot_f[slots])?;
         }
+        let (sample_offset, crossing_offset, corner_r) = if rest_mode {
+            (&ws.rest_sample_offset[..], &ws.rest_crossing_offset[..], &ws.rest_corner_r[..])
+        } else {
+            (&self.sample_offset[..], &self.crossing_offset[..], &self.corner_r[..])
+        };
         // Slot rows: F and p = q − F (q̌ − p̌) (line 8).
         for (r, f) in ws.slot_f.iter().enumerate() {
             let m = mat(f);
             let sample = self.slot_sample[r] as usize;
             let q = self.posed_sample(ws, sample);
-            let p = q - m * self.sample_offset[sample];
+            let p = q - m * sample_offset[sample];
             ws.fc[r] = flat(f);
             ws.xc[r] = p.to_array();
         }
@@ -124,7 +152,7 @@ impl Binding {
                 f[i] = lo[i] + row.t * (hi[i] - lo[i]);
             }
             let p = DVec3::from_array(ws.xc[row.lo as usize]).lerp(DVec3::from_array(ws.xc[row.hi as usize]), row.t)
-                + unflat(&f) * self.crossing_offset[c];
+                + unflat(&f) * crossing_offset[c];
             ws.fc[r] = f;
             ws.xc[r] = p.to_array();
         }
@@ -159,7 +187,7 @@ impl Binding {
             let ff = unflat(&sum) * (1.0 / n);
             for h in hs {
                 if let Corner::Unknown(u) = self.corner[h as usize] {
-                    let y = ff * self.corner_r[h as usize];
+                    let y = ff * corner_r[h as usize];
                     let row = &mut ws.rhs3[u as usize];
                     row[0] += y.x;
                     row[1] += y.y;
@@ -171,8 +199,13 @@ impl Binding {
         self.solve_in_place(&mut ws.rhs3, &mut ws.work3);
         // Output: unknowns solved, curvenet vertices the mean of their
         // constrained corners, untouched vertices at the rest pose.
-        for (v, o) in out.iter_mut().enumerate() {
-            *o = self.surface.points[v].to_array();
+        match input.rest {
+            Some(rest) => out.copy_from_slice(rest),
+            None => {
+                for (v, o) in out.iter_mut().enumerate() {
+                    *o = self.surface.points[v].to_array();
+                }
+            }
         }
         for (u, &v) in self.unknown_vertex.iter().enumerate() {
             out[v as usize] = ws.rhs3[u];
@@ -203,6 +236,74 @@ impl Binding {
         }
         if let Some((v, p)) = out.iter().enumerate().find(|(_, p)| !p.iter().all(|x| x.is_finite())) {
             return Err(Error::NonFinite { what: "deformed point", index: v, value: *p });
+        }
+        Ok(())
+    }
+
+    /// The curvenet control points of curvenet `k` tracked from the
+    /// projection pose to the rest pose `rest` (Elemental's knot tracking):
+    /// each point keeps its closest surface point (barycentric) and its
+    /// offset from it in the local triangle frame.
+    pub fn tracked_pool_into(&self, k: usize, rest: &[[f64; 3]], out: &mut [[f64; 3]]) -> Result<()> {
+        let knots = &self.knots[k];
+        if out.len() != knots.len() {
+            return Err(Error::CountMismatch { what: "tracked control points", expected: knots.len(), got: out.len() });
+        }
+        for (o, kb) in out.iter_mut().zip(knots) {
+            let [a, b, c] = self.surface.triangle_points(kb.tri, rest);
+            let base = a * kb.bary[0] + b * kb.bary[1] + c * kb.bary[2];
+            let offset = match triangle_frame(a, b, c) {
+                Some(fr) => fr[0] * kb.local[0] + fr[1] * kb.local[1] + fr[2] * kb.local[2],
+                None => DVec3::from_array(kb.local),
+            };
+            *o = (base + offset).to_array();
+        }
+        Ok(())
+    }
+
+    /// Moves the binding's rest-pose state to `rest` (paper §5, "Projection
+    /// versus Rest"): cut-vertices by their location on the input mesh, the
+    /// curvenet by knot tracking, then the rest scaled frames, the samples'
+    /// and crossings' offsets and the Poisson right-hand side of each corner.
+    /// The rest samples are those of the tracked knots, so a curvenet that is
+    /// not articulated gives F = I and reproduces the rest pose exactly.
+    fn warp_to_rest(&self, rest: &[[f64; 3]], ws: &mut Workspace) -> Result<()> {
+        for (v, x) in ws.rest_cut.iter_mut().enumerate() {
+            *x = self.surface.position_in(self.cut.vertex(v as u32).loc, rest);
+        }
+        for (k, layout) in self.layouts.iter().enumerate() {
+            self.tracked_pool_into(k, rest, &mut ws.tracked[k])?;
+            layout.sampling().samples_into(&ws.tracked[k], &mut ws.rest_samples[k])?;
+            scaled_frames_into(layout, &ws.rest_samples[k], &mut ws.rest_frames[k])?;
+            let base = self.nets[k].sample as usize;
+            for (i, q) in ws.rest_samples[k].iter().enumerate() {
+                let g = base + i;
+                let p = match self.cut.sample_vertex(g as u32) {
+                    Some(v) => ws.rest_cut[v as usize],
+                    None => DVec3::from_array(*q),
+                };
+                ws.rest_sample_offset[g] = DVec3::from_array(*q) - p;
+            }
+        }
+        for (c, row) in self.crossings.iter().enumerate() {
+            let (lo, hi) = (self.slot_sample[row.lo as usize] as usize, self.slot_sample[row.hi as usize] as usize);
+            let p = |g: usize| match self.cut.sample_vertex(g as u32) {
+                Some(v) => ws.rest_cut[v as usize],
+                None => DVec3::ZERO,
+            };
+            ws.rest_crossing_offset[c] = ws.rest_cut[row.vertex as usize] - p(lo).lerp(p(hi), row.t);
+        }
+        for f in 0..self.cut.n_faces() as u32 {
+            let hs = self.cut.face_halfedges(f);
+            let n = hs.len();
+            let lf = self.face_laplacian(f);
+            for j in 0..n {
+                let mut r = DVec3::ZERO;
+                for k in 0..n {
+                    r += lf[j * n + k] * ws.rest_cut[self.cut.tail(hs.start + k as u32) as usize];
+                }
+                ws.rest_corner_r[hs.start as usize + j] = r;
+            }
         }
         Ok(())
     }

@@ -78,6 +78,14 @@ impl Default for CutOptions {
     }
 }
 
+static CUT_MESH_BUILDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// How many cut-meshes this process has built (for tests that check a frame
+/// never rebuilds one).
+pub fn cut_mesh_builds() -> usize {
+    CUT_MESH_BUILDS.load(std::sync::atomic::Ordering::Relaxed)
+}
+
 /// A cut-vertex.
 #[derive(Debug, Clone, Copy)]
 pub struct CutVertex {
@@ -125,6 +133,7 @@ struct Piece {
 impl CutMesh {
     /// Cuts `surface` by the segments of `input`.
     pub fn new(surface: &Surface, input: CutInput<'_>, options: &CutOptions) -> Result<Self> {
+        CUT_MESH_BUILDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let tol = options.snap_tolerance * surface.diagonal;
         let mut reg = Registry::new(surface);
         // 1. Samples.

@@ -42,6 +42,19 @@ impl Surface {
         }
     }
 
+    /// Position of a location on the mesh posed at `points` (one per mesh vertex).
+    pub fn position_in(&self, loc: Location, points: &[[f64; 3]]) -> DVec3 {
+        let p = |v: u32| DVec3::from_array(points[v as usize]);
+        match loc {
+            Location::Vertex(v) => p(v),
+            Location::Edge { h, t } => p(self.halfedges.tail(h)).lerp(p(self.halfedges.head(h)), t),
+            Location::Face { tri, bary, .. } => {
+                let t = self.triangles[tri as usize];
+                (0..3).map(|k| p(self.halfedges.tail(t[k])) * bary[k]).sum()
+            }
+        }
+    }
+
     /// The faces whose closure contains `loc`, into `out`.
     pub fn faces_of(&self, loc: Location, out: &mut Vec<u32>) {
         out.clear();

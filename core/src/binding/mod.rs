@@ -123,6 +123,27 @@ pub(crate) struct CrossingRow {
     pub vertex: u32,
 }
 
+/// A curvenet control point bound to the surface: a triangle (index into
+/// the surface's triangles), barycentric coordinates of its closest point,
+/// and its offset from that point in the triangle's orthonormal frame.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct KnotBinding {
+    pub tri: u32,
+    pub bary: [f64; 3],
+    pub local: [f64; 3],
+}
+
+/// An orthonormal frame of a triangle: (edge direction, in-plane normal to
+/// it, triangle normal), or `None` for a degenerate triangle.
+pub(crate) fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<[DVec3; 3]> {
+    let e1 = (b - a).normalize_or_zero();
+    let n = (b - a).cross(c - a).normalize_or_zero();
+    if e1 == DVec3::ZERO || n == DVec3::ZERO {
+        return None;
+    }
+    Some([e1, n.cross(e1), n])
+}
+
 /// Per-curvenet offsets into the concatenated samples, segments and slots.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct NetRange {
@@ -196,6 +217,9 @@ pub struct Binding {
     pub(crate) curve_vertices: Vec<u32>,
     pub(crate) curve_vertex_start: Vec<u32>,
     pub(crate) curve_vertex_rows: Vec<u32>,
+    /// Per curvenet, per pool point: where it sits over the projection-pose
+    /// surface (for tracking the knots to a rest pose).
+    pub(crate) knots: Vec<Vec<KnotBinding>>,
     pub(crate) warnings: Vec<BindWarning>,
     pub(crate) stats: BindStats,
     pub(crate) timings: BindTimings,
@@ -462,7 +486,25 @@ impl Binding {
                 curve_vertex_start.push(curve_vertex_rows.len() as u32);
             }
         }
+        let mut knots = Vec::with_capacity(curvenets.len());
+        for layout in curvenets {
+            let pool = layout.neutral_pool();
+            let mut bound = Vec::with_capacity(pool.len());
+            for p in pool {
+                let hit = surface.bvh.closest_point(*p)?;
+                let tri = hit.triangle;
+                let [a, b, c] = surface.triangle_points(tri, &surface.points);
+                let offset = DVec3::from_array(*p) - DVec3::from_array(hit.point);
+                let local = match triangle_frame(a, b, c) {
+                    Some(fr) => [offset.dot(fr[0]), offset.dot(fr[1]), offset.dot(fr[2])],
+                    None => offset.to_array(),
+                };
+                bound.push(KnotBinding { tri, bary: hit.barycentric, local });
+            }
+            knots.push(bound);
+        }
         Ok(Self {
+            knots,
             layouts: curvenets.iter().map(|l| (*l).clone()).collect(),
             slot_sample,
             sample_projection,

@@ -133,6 +133,11 @@ impl Surface {
         })
     }
 
+    /// The corner positions of triangle `t` in the pose `points` (one per mesh vertex).
+    pub(crate) fn triangle_points<P: Copy + Into<DVec3>>(&self, t: u32, points: &[P]) -> [DVec3; 3] {
+        self.triangles[t as usize].map(|h| points[self.halfedges.tail(h) as usize].into())
+    }
+
     pub fn mesh(&self) -> &PolyMesh {
         &self.mesh
     }

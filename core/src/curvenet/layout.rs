@@ -27,6 +27,7 @@ pub struct CurvenetLayout {
     curve_ends: Vec<[Option<(u32, u32)>; 2]>,
     curve_isolated: Vec<bool>,
     constraints: ConstraintTable,
+    neutral_pool: Vec<[f64; 3]>,
     neutral_samples: Vec<[f64; 3]>,
     neutral_frames: Vec<[ScaledFrame; 2]>,
     collapse_length: f64,
@@ -83,6 +84,7 @@ impl CurvenetLayout {
             curve_ends,
             curve_isolated,
             constraints,
+            neutral_pool: curvenet.points().to_vec(),
             neutral_samples,
             neutral_frames: Vec::new(),
             collapse_length,
@@ -109,6 +111,11 @@ impl CurvenetLayout {
     /// The constraint slots (§4.3).
     pub fn constraints(&self) -> &ConstraintTable {
         &self.constraints
+    }
+
+    /// The control-point pool of the neutral pose (`#P`).
+    pub fn neutral_pool(&self) -> &[[f64; 3]] {
+        &self.neutral_pool
     }
 
     /// The samples of the neutral pose (`#Q`).

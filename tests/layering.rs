@@ -1,0 +1,106 @@
+//! Separate projection and rest poses (paper §5, Elemental §3): a binding
+//! built once in the projection pose deforms frames whose rest pose is
+//! anything of the same topology (skinning, cloth), with knot tracking.
+
+use curvenet_core::FrameInput;
+use curvenet_e2e::{Bound, bind_fixture, max_distance};
+
+fn solve(b: &Bound, posed: &[Option<&[[f64; 3]]>], rest: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
+    let mut ws = b.binding.workspace();
+    let mut out = vec![[0.0; 3]; b.binding.n_vertices()];
+    b.binding.deform(&FrameInput { posed, rest }, &mut ws, &mut out, None).unwrap();
+    out
+}
+
+fn rotate_y(p: [f64; 3], angle: f64, pivot: [f64; 3]) -> [f64; 3] {
+    let (c, s) = (angle.cos(), angle.sin());
+    let (x, z) = (p[0] - pivot[0], p[2] - pivot[2]);
+    [pivot[0] + c * x + s * z, p[1], pivot[2] - s * x + c * z]
+}
+
+fn rigid(p: [f64; 3]) -> [f64; 3] {
+    let q = rotate_y(p, 0.6, [0.0, 0.4, 0.0]);
+    [q[0] + 0.2, q[1] - 0.1, q[2] + 0.3]
+}
+
+/// A smooth non-rigid deformation of the hand: the upper part (fingers,
+/// y > 0.5) bends about the x axis with a weight ramping over y ∈ [0.5, 0.9].
+fn bend(p: [f64; 3]) -> [f64; 3] {
+    let w = ((p[1] - 0.5) / 0.4).clamp(0.0, 1.0);
+    let w = w * w * (3.0 - 2.0 * w);
+    let a = 0.5 * w;
+    let (c, s) = (a.cos(), a.sin());
+    let (y, z) = (p[1] - 0.5, p[2]);
+    [p[0], 0.5 + c * y - s * z, s * y + c * z]
+}
+
+#[test]
+fn rest_equal_to_projection_reproduces_the_single_pose_solve() {
+    let b = bind_fixture("shots/hand_wave/shot.usda");
+    let pool = b.stage.posed_pool(&b.nets[0], Some(13.0)).unwrap().unwrap();
+    let single = solve(&b, &[Some(&pool)], None);
+    let layered = solve(&b, &[Some(&pool)], Some(&b.mesh.projection_points));
+    let err = max_distance(&single, &layered);
+    eprintln!("rest = projection: {:.2e} x diagonal from the single-pose solve", err / b.diagonal());
+    assert!(err <= 1e-12 * b.diagonal(), "{err:e}");
+}
+
+#[test]
+fn unarticulated_curvenets_follow_rigid_and_bent_rest_poses_exactly() {
+    let b = bind_fixture("hand/hand_1k4.usda");
+    for (name, f) in [("rigid", rigid as fn([f64; 3]) -> [f64; 3]), ("bent", bend)] {
+        let rest: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(|p| f(*p)).collect();
+        let moved = max_distance(&rest, &b.mesh.projection_points);
+        let out = solve(&b, &[None], Some(&rest));
+        let err = max_distance(&out, &rest);
+        eprintln!("{name} rest pose (moves up to {:.3} x diagonal): output = rest to {:.2e} x diagonal", moved / b.diagonal(), err / b.diagonal());
+        assert!(moved > 0.05 * b.diagonal(), "the {name} rest pose should move the hand");
+        assert!(err <= 1e-9 * b.diagonal(), "{name}: output differs from the rest pose by {err:e}");
+    }
+}
+
+#[test]
+fn an_articulated_ring_changes_only_the_surface_it_bounds() {
+    let b = bind_fixture("hand/hand_1k4.usda");
+    let rest: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(|p| rigid(*p)).collect();
+    let layout = &b.layouts[0];
+    let mut tracked = vec![[0.0; 3]; b.nets[0].pool.len()];
+    b.binding.tracked_pool_into(0, &rest, &mut tracked).unwrap();
+    // The wrist ring: the isolated closed curve (fixtures/README.md).
+    let topo = layout.topology();
+    let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
+    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
+    points.sort();
+    points.dedup();
+    let centre: [f64; 3] =
+        std::array::from_fn(|i| points.iter().map(|&p| tracked[p as usize][i]).sum::<f64>() / points.len() as f64);
+    let mut posed = tracked.clone();
+    for &p in &points {
+        posed[p as usize] = std::array::from_fn(|i| centre[i] + 1.15 * (tracked[p as usize][i] - centre[i]));
+    }
+    let out = solve(&b, &[Some(&posed)], Some(&rest));
+    let unposed = solve(&b, &[Some(&tracked)], Some(&rest));
+    assert!(max_distance(&unposed, &rest) <= 1e-9 * b.diagonal());
+    // Displacement against the rest-pose height (y before the rigid motion).
+    let diag = b.diagonal();
+    let mut near = 0.0f64;
+    let mut beyond_palm = 0.0f64;
+    for (v, p) in b.mesh.projection_points.iter().enumerate() {
+        let d = max_distance(&out[v..v + 1], &rest[v..v + 1]);
+        if p[1] < 0.2 {
+            near = near.max(d);
+        }
+        if p[1] > 0.34 {
+            beyond_palm = beyond_palm.max(d);
+        }
+    }
+    eprintln!(
+        "wrist ring scaled by 1.15: max displacement below y = 0.2 is {:.3e}, beyond the palm ring (y > 0.34) {:.3e} (x diagonal)",
+        near / diag,
+        beyond_palm / diag
+    );
+    assert!(near > 2e-3 * diag, "the articulated ring should move the wrist ({near:e})");
+    // The palm ring (y = 0.30) is a closed constrained curve around the hand:
+    // nothing beyond it can move.
+    assert!(beyond_palm <= 1e-9 * diag, "the change leaks past the palm ring: {beyond_palm:e}");
+}
