@@ -12,6 +12,7 @@
 //!   `[u32; 4]` of indices into the pool.
 
 pub mod binding;
+pub mod blend_shapes;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;

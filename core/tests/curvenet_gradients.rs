@@ -36,7 +36,8 @@ fn check_frames(frames: &[[ScaledFrame; 2]]) {
 }
 
 /// Neutral → I, scaling by s → s I, rigid motion → R (curves meeting an
-/// intersection) or the smallest rotation of the tangent (isolated curves).
+/// intersection, and curved isolated curves) or the smallest rotation of the
+/// tangent (straight isolated curves).
 fn check_invariants(name: &str, b: &NetBuilder, mesh: &PolyMesh, pts: &[[f64; 3]]) -> usize {
     let layout = layout_of(b, mesh, pts);
     check_frames(layout.neutral_frames());
@@ -77,6 +78,11 @@ fn check_invariants(name: &str, b: &NetBuilder, mesh: &PolyMesh, pts: &[[f64; 3]
                 for fs in &f[s] {
                     assert!(norm(sub(apply(fs, rest_t), posed_t)) < 1e-9);
                     assert!(max_diff(&mat_mul(&transpose(fs), fs), &I3) < 1e-9);
+                    // A curved isolated curve has a normal of its own: F is the rotation.
+                    if posed[s][0].has_normal() {
+                        let d = max_diff(fs, &r);
+                        assert!(d < 1e-9, "{name}: rigid motion gives F != R by {d} at isolated segment {s}");
+                    }
                 }
             } else {
                 for (side, fs) in f[s].iter().enumerate() {

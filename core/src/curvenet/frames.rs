@@ -36,8 +36,9 @@
 //! - **Antiparallel consecutive tangents** (a hairpin segment pair) transport
 //!   the normal unchanged (a half turn about the normal).
 //! - **Curves with no intersection** (both ends anchors, or isolated closed
-//!   curves) get tangent-only frames: `normal = binormal = 0`,
-//!   `scale = (l, l, l)`; their gradient uses the tangents only.
+//!   curves) have `scale = (l, l, l)` and a normal from the curve's own
+//!   vector area when it has one (see `isolated_curve_frames`); a straight
+//!   one keeps the paper's tangent-only frame (`normal = binormal = 0`).
 
 use glam::DVec3;
 
@@ -142,6 +143,7 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
     for c in 0..sampling.n_curves() {
         let [start, end] = layout.curve_end_slots(c);
         if start.is_none() && end.is_none() {
+            isolated_curve_frames(samples, sampling.curve_samples(c), sampling.curve_segments(c), out);
             continue;
         }
         let segs = sampling.curve_segments(c);
@@ -208,6 +210,38 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
         }
     }
     Ok(())
+}
+
+/// Frames of a curve that meets no intersection: the paper gives it only a
+/// tangent. We complete the frame from the curve's own shape when it has
+/// one: `N`, the vector area of its sample polygon (closed by its chord when
+/// the curve is open), gives each segment the normal `N` made orthogonal to
+/// its tangent. A rigid motion moves `N` with the curve, so such a curve's
+/// `F` is the motion's rotation, as for curves meeting intersections; the
+/// paper's smallest rotation of the tangent alone is not (it loses any
+/// rotation about the tangent, e.g. tilting a ring). A straight curve has no
+/// vector area and keeps tangent-only frames (the paper's rule).
+fn isolated_curve_frames(samples: &[[f64; 3]], curve_samples: &[u32], segs: std::ops::Range<usize>, out: &mut [[ScaledFrame; 2]]) {
+    let pts = || curve_samples.iter().map(|&i| v3(samples[i as usize]));
+    let Some(o) = pts().next() else { return };
+    let mut area = DVec3::ZERO;
+    let mut prev = DVec3::ZERO;
+    for p in pts() {
+        area += prev.cross(p - o);
+        prev = p - o;
+    }
+    let length: f64 = segs.clone().map(|s| out[s][0].scale[0]).sum();
+    if !(area.length() > 1e-6 * length * length) {
+        return;
+    }
+    for s in segs {
+        let t = v3(out[s][0].tangent);
+        let Some(n) = orthonormalize(area, t) else { continue };
+        for f in &mut out[s] {
+            f.normal = n.to_array();
+            f.binormal = n.cross(t).to_array();
+        }
+    }
 }
 
 /// Allocating form of [`scaled_frames_into`].

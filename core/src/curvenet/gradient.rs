@@ -5,8 +5,10 @@
 //! `(l/ľ) t ⊗ ť + (w/w̌) b ⊗ b̌ + (h/ȟ) n ⊗ ň` (posed axis ⊗ rest axis, i.e.
 //! `a bᵀ`; the paper's Eq. (1) swaps the first product by a typo). For
 //! curves with no intersection (isolated closed curves, or both ends
-//! anchors), `F = (l/ľ) R(ť → t)` with `R` the smallest rotation taking the
-//! rest tangent to the posed one, the same on both sides; for exactly
+//! anchors), the same formula with the curve's own normal (frames.rs) gives
+//! `(l/ľ)` times a rotation, the same on both sides; for a straight such
+//! curve (no normal) `F = (l/ľ) R(ť → t)` with `R` the smallest rotation
+//! taking the rest tangent to the posed one, as in the paper; for exactly
 //! opposite tangents `R` is the half turn about `normalize(ť × e)`, `e` the
 //! coordinate axis least aligned with `ť`.
 //!
@@ -50,7 +52,7 @@ pub fn deformation_gradients_into(
         if let Some(&value) = rest[s].iter().flat_map(|f| f.scale.iter()).find(|x| !(x.is_finite() && **x > 0.0)) {
             return Err(Error::InvalidParameter { what: "a rest scaled frame's scale", value });
         }
-        if layout.curve_is_isolated(seg.curve as usize) {
+        if layout.curve_is_isolated(seg.curve as usize) && !(rest[s][0].has_normal() && posed[s][0].has_normal()) {
             let (r, p) = (&rest[s][0], &posed[s][0]);
             let f = smallest_rotation(v3(r.tangent), v3(p.tangent)) * (p.scale[0] / r.scale[0]);
             out[s] = [to_rows(f); 2];
