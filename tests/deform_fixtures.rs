@@ -4,7 +4,7 @@ use curvenet_e2e::{bind_fixture, max_distance};
 
 #[test]
 fn every_hand_tessellation_binds_and_reproduces_the_neutral_pose() {
-    for rel in ["hand/hand_1k4.usda", "hand/hand_closed.usda", "hand/hand_lowres.usda", "hand/hand_22k.usdc"] {
+    for rel in ["hand/hand_1k4.usda", "hand/hand_closed.usda", "hand/hand_lowres.usda", "hand/hand_22k.usdc", "hand/hand_94k.usdc"] {
         let t = std::time::Instant::now();
         let b = bind_fixture(rel);
         let s = b.binding.stats();
@@ -181,4 +181,41 @@ fn twist_fig_12_keeps_volume_within_bounds_and_is_deterministic() {
         let again = b.deform_at(frame);
         assert!(out == again, "twist {degrees}°: two solves differ");
     }
+}
+
+/// Largest distance from a vertex of `a` to the surface of `b`.
+fn one_sided(a: &[[f64; 3]], b_mesh: &curvenet_core::PolyMesh, b: &[[f64; 3]]) -> f64 {
+    let bvh = curvenet_core::ClosestPointBvh::new(b_mesh, b).unwrap();
+    a.iter().map(|p| bvh.closest_point(*p).unwrap().distance).fold(0.0, f64::max)
+}
+
+#[test]
+fn tessellation_fig_8_three_meshes_deform_alike() {
+    // One curvenet pose (the shot's frame 13: the index finger curled 60°)
+    // on three tessellations of the hand.
+    let shot = bind_fixture("shots/hand_wave/shot.usda");
+    let pool = shot.stage.posed_pool(&shot.nets[0], Some(13.0)).unwrap().unwrap();
+    let meshes: Vec<_> = ["hand/hand_1k4.usda", "hand/hand_closed.usda", "hand/hand_22k.usdc"]
+        .iter()
+        .map(|rel| {
+            let b = bind_fixture(rel);
+            assert_eq!(b.nets[0].pool.len(), pool.len(), "{rel}: the same curvenet");
+            let out = b.deform(&[pool.clone()]);
+            (rel, b, out)
+        })
+        .collect();
+    let diag = meshes[0].1.diagonal();
+    for i in 0..meshes.len() {
+        for j in i + 1..meshes.len() {
+            let (a, b) = (&meshes[i], &meshes[j]);
+            let rest = one_sided(&a.1.mesh.projection_points, &b.1.topology, &b.1.mesh.projection_points)
+                .max(one_sided(&b.1.mesh.projection_points, &a.1.topology, &a.1.mesh.projection_points));
+            let posed = one_sided(&a.2, &b.1.topology, &b.2).max(one_sided(&b.2, &a.1.topology, &a.2));
+            eprintln!("{} vs {}: Hausdorff {:.4} x diagonal posed ({:.4} at rest)", a.0, b.0, posed / diag, rest / diag);
+            assert!(posed <= 0.02 * diag, "{} vs {}: {:.4} of the diagonal apart", a.0, b.0, posed / diag);
+        }
+    }
+    // The pose does move the finger (so the comparison is not vacuous).
+    let moved = max_distance(&meshes[0].2, &meshes[0].1.mesh.projection_points);
+    assert!(moved > 0.05 * diag, "the curl moved the mesh by only {:.3} x diagonal", moved / diag);
 }
