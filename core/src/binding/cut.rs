@@ -370,11 +370,31 @@ impl<'s> Registry<'s> {
         }
 
         let mut out = Builder::default();
-        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::with_capacity(he.n_halfedges() + 4 * pieces.len());
         let mut removed_vertices = vec![false; self.vertices.len()];
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
         for f in 0..surface.mesh.n_faces() as u32 {
+            // Fast path: a face no segment touches is its own single cut-face.
+            let untouched = !chords.contains_key(&f)
+                && he.face_halfedges(f).all(|h| !self.on_edge.contains_key(&surface.canonical(h)));
+            if untouched {
+                let face_id = out.parent.len() as u32;
+                out.parent.push(f);
+                for h in he.face_halfedges(f) {
+                    let (ca, cb) = (he.tail(h), he.head(h));
+                    let gh = out.tail.len() as u32;
+                    out.tail.push(ca);
+                    out.face.push(face_id);
+                    let seg = along.get(&(ca, cb)).map(|&s| (s, true)).or_else(|| along.get(&(cb, ca)).map(|&s| (s, false)));
+                    out.segment.push(seg.map_or(INVALID, |x| x.0));
+                    out.forward.push(seg.is_some_and(|x| x.1));
+                    out.twin.push(INVALID);
+                    boundary_key.insert((ca, cb), gh);
+                }
+                out.face_start.push(out.tail.len() as u32);
+                continue;
+            }
             pslg.clear();
             // Boundary nodes, counter-clockwise.
             for h in he.face_halfedges(f) {
