@@ -34,6 +34,35 @@ static GLOBAL: Counting = Counting;
 
 #[test]
 fn per_frame_evaluation_does_not_allocate() {
+    curvenet_evaluation();
+    whole_frame_solve();
+}
+
+/// A whole frame (`Binding::deform`, with and without a rest pose and with
+/// per-vertex gradients) allocates nothing once its workspace exists.
+fn whole_frame_solve() {
+    let (mesh, pts) = plane(3.0, 23);
+    let b = grid(0.05);
+    let net = Curvenet::new(&b.splines, &b.points).unwrap();
+    let layout = CurvenetLayout::new(&net, &mesh, &pts, &SamplingOptions::default()).unwrap();
+    let binding = curvenet_core::Binding::new(&mesh, &pts, &[&layout], &Default::default()).unwrap();
+    let r = rotation([0.2, 1.0, 0.3], 0.7);
+    let pose: Vec<[f64; 3]> = b.points.iter().map(|&p| apply(&r, p)).collect();
+    let rest: Vec<[f64; 3]> = pts.iter().map(|&p| [p[0], p[1], 0.1 * p[0] * p[0]]).collect();
+    let mut ws = binding.workspace();
+    let mut out = vec![[0.0; 3]; binding.n_vertices()];
+    let mut grads = vec![[0.0; 9]; binding.n_vertices()];
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for rest in [None, Some(rest.as_slice())] {
+        let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest };
+        binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
+    }
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(after - before, 0, "Binding::deform allocated");
+    assert!(out.iter().zip(&pts).any(|(o, p)| (o[2] - p[2]).abs() > 1e-3), "the frame moved the mesh");
+}
+
+fn curvenet_evaluation() {
     let (mesh, pts) = cylinder(1.0, -1.0, 4.0, 48, 30);
     let b = cylinder_net();
     let net = Curvenet::new(&b.splines, &b.points).unwrap();
