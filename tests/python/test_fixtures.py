@@ -23,6 +23,7 @@ GENERATE = FIXTURES / "generate.py"
 MANIFEST = json.loads((FIXTURES / "manifest.json").read_text(encoding="utf-8"))
 STAGES = sorted(MANIFEST["stages"])
 SHOT = "shots/hand_wave/shot.usda"
+SKINNED = "shots/hand_skinned/shot.usda"
 HAND_STAGES = [f"hand/{n}" for n in
                ("hand_1k4.usda", "hand_closed.usda", "hand_lowres.usda", "hand_22k.usdc", "hand_94k.usdc")]
 
@@ -108,7 +109,7 @@ def expected_offsets(full, inbetweens, weight):
 
 def test_manifest_lists_every_composed_stage():
     assert MANIFEST["format"] == 1
-    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT] + HAND_STAGES)
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED] + HAND_STAGES)
     for rel in STAGES:
         assert (FIXTURES / rel).is_file(), rel
 
@@ -476,6 +477,192 @@ def test_shot_curls_only_the_index_finger():
     assert [p.specifier for p in anim.rootPrims] == [Sdf.SpecifierOver]
     assert list(s.GetRootLayer().subLayerPaths) == ["./anim.usda", "../../hand/hand_1k4.usda"]
     assert s.GetFramesPerSecond() == 24
+
+
+# ----------------------------------------------------------------------------
+# the skinned shot: the rest pose is baked linear blend skinning
+
+
+SKIN_FRAMES = list(range(1, 13))
+
+
+def skin_rig():
+    """skel.usda composed over the hand asset, in memory (the shot does not sublayer it)."""
+    if "rig" not in _STAGES:
+        layer = Sdf.Layer.CreateAnonymous(".usda")
+        layer.subLayerPaths = [str(FIXTURES / "shots/hand_skinned/skel.usda"), str(FIXTURES / "hand/hand_1k4.usda")]
+        _STAGES["rig"] = Usd.Stage.Open(layer)
+    return _STAGES["rig"]
+
+
+def skin_queries():
+    rig = skin_rig()
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(rig.GetPrimAtPath("/Hand"))
+    assert root and cache.Populate(root, Usd.PrimDefaultPredicate)
+    skel_query = cache.GetSkelQuery(UsdSkel.Skeleton(rig.GetPrimAtPath("/Hand/Skel")))
+    skinning = cache.GetSkinningQuery(rig.GetPrimAtPath("/Hand/Mesh"))
+    assert skel_query and skinning and skinning.HasJointInfluences()
+    return skel_query, skinning
+
+
+def quat_matrix(q):
+    """3x3 rotation (acting on column vectors) of a unit Gf quaternion."""
+    w, (x, y, z) = q.GetReal(), q.GetImaginary()
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]], dtype=np.float64)
+
+
+def quat_angle(q):
+    return math.degrees(2.0 * math.atan2(float(np.linalg.norm(list(q.GetImaginary()))), q.GetReal()))
+
+
+def neutral_hand():
+    return vec3(UsdGeom.Mesh(stage("hand/hand_1k4.usda").GetPrimAtPath("/Hand/Mesh")).GetPointsAttr().Get())
+
+
+def skinned_rest(t):
+    return vec3(UsdGeom.Mesh(stage(SKINNED).GetPrimAtPath("/Hand/Mesh")).GetPointsAttr().Get(t))
+
+
+def joint_positions():
+    skel = UsdSkel.Skeleton(skin_rig().GetPrimAtPath("/Hand/Skel"))
+    names = list(skel.GetJointsAttr().Get())
+    return {n.split("/")[-1]: np.array(m.ExtractTranslation(), dtype=np.float64)
+            for n, m in zip(names, skel.GetBindTransformsAttr().Get())}
+
+
+def test_skinned_shot_layers_bake_the_skinning_without_binding_it():
+    s = stage(SKINNED)
+    assert list(s.GetRootLayer().subLayerPaths) == ["./rest.usda", "../../hand/hand_1k4.usda"]
+    assert s.GetFramesPerSecond() == 24 and s.GetTimeCodesPerSecond() == 24
+    assert UsdGeom.GetStageUpAxis(s) == UsdGeom.Tokens.y
+    assert not any(p.endswith("skel.usda") for p in [l.identifier for l in s.GetLayerStack()])
+    # the rest layer: `over` opinions on /Hand/Mesh only, no UsdSkel data
+    rest = Sdf.Layer.FindOrOpen(str(FIXTURES / "shots/hand_skinned/rest.usda"))
+    specs = []
+    rest.Traverse(Sdf.Path.absoluteRootPath, lambda p: specs.append(p) if p.IsPrimPath() else None)
+    assert sorted(str(p) for p in specs) == ["/Hand", "/Hand/Mesh"]
+    for p in specs:
+        spec = rest.GetPrimAtPath(p)
+        assert spec.specifier == Sdf.SpecifierOver and spec.typeName == "", p
+    mesh_spec = rest.GetPrimAtPath("/Hand/Mesh")
+    assert sorted(mesh_spec.attributes.keys()) == ["extent", "points", "primvars:curvenet:projectionPoints"]
+    assert not mesh_spec.relationships and not mesh_spec.GetInfo("apiSchemas").GetAddedOrExplicitItems()
+    # nothing in the composed shot would skin the mesh a second time
+    assert not any(p.IsA(UsdSkel.Skeleton) or p.IsA(UsdSkel.Root) or p.IsA(UsdSkel.Animation) for p in s.Traverse())
+    mesh = s.GetPrimAtPath("/Hand/Mesh")
+    assert not mesh.HasAPI(UsdSkel.BindingAPI)
+    assert not [a.GetName() for a in mesh.GetAttributes() if a.GetName().startswith(("skel:", "primvars:skel:"))]
+    # the curvenet is not articulated: it tracks the rest pose
+    assert pool_primvar(s.GetPrimAtPath("/Hand/Curvenet")).GetTimeSamples() == []
+    assert list(UsdGeom.Mesh(mesh).GetPointsAttr().GetTimeSamples()) == [float(t) for t in SKIN_FRAMES]
+
+
+def test_skinned_shot_projection_pose_is_the_neutral_hand():
+    prim = stage(SKINNED).GetPrimAtPath("/Hand/Mesh")
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar("curvenet:projectionPoints")
+    assert pv and pv.HasAuthoredValue()
+    assert pv.GetTypeName() == Sdf.ValueTypeNames.Point3fArray
+    assert pv.GetInterpolation() == UsdGeom.Tokens.vertex
+    assert pv.GetAttr().GetNumTimeSamples() == 0, "the projection pose is static"
+    np.testing.assert_array_equal(vec3(pv.Get()), neutral_hand())
+    # and so is the points default: only the time samples are the skinned rest pose
+    np.testing.assert_array_equal(vec3(UsdGeom.Mesh(prim).GetPointsAttr().Get(Usd.TimeCode.Default())), neutral_hand())
+
+
+def test_skinned_rig_weights():
+    binding = UsdSkel.BindingAPI(skin_rig().GetPrimAtPath("/Hand/Mesh"))
+    indices_pv, weights_pv = binding.GetJointIndicesPrimvar(), binding.GetJointWeightsPrimvar()
+    assert indices_pv.GetElementSize() == weights_pv.GetElementSize() == 4
+    assert indices_pv.GetInterpolation() == weights_pv.GetInterpolation() == UsdGeom.Tokens.vertex
+    idx = np.array(indices_pv.Get(), dtype=np.int64).reshape(-1, 4)
+    w = np.array(weights_pv.Get(), dtype=np.float64).reshape(-1, 4)
+    assert len(idx) == len(neutral_hand())
+    assert idx.min() >= 0 and idx.max() < 4 and w.min() >= 0.0
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=0, atol=1e-6)
+    # every joint drives some vertices; most of the hand follows the wrist alone
+    for j in range(4):
+        assert np.any((idx == j) & (w > 0.5)), f"joint {j} drives no vertex"
+    wrist_only = np.all((idx == 0) | (w == 0.0), axis=1)
+    assert 0.7 * len(idx) < wrist_only.sum() < len(idx)
+    assert UsdSkel.BindingAPI(skin_rig().GetPrimAtPath("/Hand/Mesh")).GetSkinningMethodAttr().Get() == "classicLinear"
+
+
+def test_skinned_rig_animation():
+    skel = UsdSkel.Skeleton(skin_rig().GetPrimAtPath("/Hand/Skel"))
+    assert list(skel.GetJointsAttr().Get()) == ["wrist", "wrist/index_mcp", "wrist/index_mcp/index_pip",
+                                                 "wrist/index_mcp/index_pip/index_dip"]
+    anim = UsdSkel.Animation(skin_rig().GetPrimAtPath("/Hand/Skel/Anim"))
+    rot = anim.GetRotationsAttr()
+    assert list(rot.GetTimeSamples()) == [float(t) for t in SKIN_FRAMES]
+    assert [quat_angle(q) for q in rot.Get(1)] == [0.0] * 4
+    wrist, mcp, pip, dip = rot.Get(12)
+    assert quat_angle(wrist) == pytest.approx(15.0, abs=1e-4)
+    np.testing.assert_allclose(list(wrist.GetImaginary().GetNormalized()), [0, 0, 1], atol=1e-6)
+    assert quat_angle(mcp) == pytest.approx(50.0, abs=1e-4)
+    assert quat_angle(pip) == pytest.approx(40.0, abs=1e-4)
+    assert 0.0 < quat_angle(dip) < 40.0
+    # the angles rise monotonically
+    for k in range(4):
+        series = [quat_angle(rot.Get(t)[k]) for t in SKIN_FRAMES]
+        assert all(b > a for a, b in zip(series, series[1:]))
+    # the joints lie on the index finger's axis, in order from the wrist
+    j = joint_positions()
+    assert j["wrist"][1] < 0.15 < 0.5 < j["index_mcp"][1] < j["index_pip"][1] < j["index_dip"][1] < 0.9
+    axis = (j["index_dip"] - j["index_mcp"]) / np.linalg.norm(j["index_dip"] - j["index_mcp"])
+    off = (j["index_pip"] - j["index_mcp"]) - axis * np.dot(j["index_pip"] - j["index_mcp"], axis)
+    assert np.linalg.norm(off) < 1e-3
+    # the finger bends towards the palm (+z)
+    tip = int(np.argmax(neutral_hand()[:, 1] - 10.0 * np.abs(neutral_hand()[:, 0] - j["index_dip"][0])))
+    assert skinned_rest(12)[tip, 2] - neutral_hand()[tip, 2] > 0.15
+
+
+@pytest.mark.parametrize("frame", [1, 6, 12])
+def test_skinned_rest_pose_is_the_rig_skinned_by_usdskel(frame):
+    skel_query, skinning = skin_queries()
+    xforms = skel_query.ComputeSkinningTransforms(frame)
+    points = Vt.Vec3fArray(list(map(tuple, neutral_hand().tolist())))
+    assert skinning.ComputeSkinnedPoints(xforms, points, frame)
+    rest = skinned_rest(frame).astype(np.float64)
+    np.testing.assert_allclose(vec3(points).astype(np.float64), rest, rtol=0, atol=1e-6)
+    # the same, as plain linear blend skinning: p' = sum_k w_k (p M_k), row vectors
+    binding = UsdSkel.BindingAPI(skin_rig().GetPrimAtPath("/Hand/Mesh"))
+    idx = np.array(binding.GetJointIndicesPrimvar().Get(), dtype=np.int64).reshape(-1, 4)
+    w = np.array(binding.GetJointWeightsPrimvar().Get(), dtype=np.float64).reshape(-1, 4)
+    M = np.array([np.array(m, dtype=np.float64).reshape(4, 4) for m in xforms])
+    p = np.hstack([neutral_hand().astype(np.float64), np.ones((len(idx), 1))])
+    lbs = np.zeros((len(idx), 3))
+    for k in range(4):
+        lbs += w[:, k:k + 1] * np.einsum("ni,nij->nj", p, M[idx[:, k]])[:, :3]
+    np.testing.assert_allclose(lbs, rest, rtol=0, atol=1e-6)
+
+
+def test_skinned_frame_1_is_the_neutral_hand():
+    np.testing.assert_allclose(skinned_rest(1).astype(np.float64), neutral_hand().astype(np.float64), rtol=0, atol=1e-6)
+
+
+def test_skinned_hand_away_from_the_finger_turns_rigidly_about_the_wrist():
+    j = joint_positions()
+    p0 = neutral_hand().astype(np.float64)
+    axis = (j["index_dip"] - j["index_mcp"]) / np.linalg.norm(j["index_dip"] - j["index_mcp"])
+    a, b = j["index_mcp"] - 0.05 * axis, j["index_dip"] + 0.12 * axis  # the finger, knuckle to tip
+    f = np.clip((p0 - a) @ (b - a) / np.dot(b - a, b - a), 0.0, 1.0)
+    from_finger = np.linalg.norm(p0 - (a + f[:, None] * (b - a)), axis=1)
+    far = (from_finger > 0.1) & (np.linalg.norm(p0 - j["wrist"], axis=1) > 0.1)
+    assert far.sum() > 0.6 * len(p0)
+    anim = UsdSkel.Animation(skin_rig().GetPrimAtPath("/Hand/Skel/Anim"))
+    diag = np.linalg.norm(p0.max(0) - p0.min(0))
+    for t in SKIN_FRAMES:
+        R = quat_matrix(anim.GetRotationsAttr().Get(t)[0])
+        want = (p0 - j["wrist"]) @ R.T + j["wrist"]
+        got = skinned_rest(t).astype(np.float64)
+        np.testing.assert_allclose(got[far], want[far], rtol=0, atol=1e-6, err_msg=f"frame {t}")
+        if t == SKIN_FRAMES[-1]:
+            # the turn is visible, and the finger does more than turn
+            assert np.linalg.norm(got[far] - p0[far], axis=1).max() > 0.1 * diag
+            assert np.linalg.norm(got[~far] - want[~far], axis=1).max() > 0.2 * diag
 
 
 # ----------------------------------------------------------------------------
