@@ -17,6 +17,8 @@
 mod error;
 mod read;
 mod value;
+mod write;
+pub use write::{LayerFormat, PrimPoints, WriteError, encode_points_overrides, write_points_overrides};
 
 pub use error::UsdError;
 pub use read::Stage;
