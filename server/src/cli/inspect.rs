@@ -1,13 +1,33 @@
 //! `curvenet inspect STAGE`: what a stage holds for curvenet deformation, for
 //! a rigging TD debugging a curvenet before binding it.
+//!
+//! Besides the raw data (meshes, curvenets, blend shapes, frames), every
+//! curvenet is analysed as the binding will analyse it (paper §3): its neutral
+//! pool against the projection pose of the first mesh that targets it. The
+//! report lists the intersections, anchors and curves with their sampling, and
+//! warns about what is likely a mistake (curves shorter than a mesh edge,
+//! curves with a single segment, unused control points, samples far from the
+//! surface, non-finite posed pools). A curvenet whose analysis fails is
+//! reported with its error (naming the prim) and the others are still
+//! reported; the command then exits with status 2.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use curvenet_core::curvenet::CurveEnd;
+use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 use serde::Serialize;
 
 use super::{CliError, CliResult};
+
+/// A sample farther than this fraction of the mesh's bounding-box diagonal
+/// from the surface is reported.
+pub const FAR_FROM_SURFACE: f64 = 0.05;
+
+/// At most this many control points are named in one warning.
+const MAX_LISTED: usize = 20;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -22,6 +42,11 @@ pub struct Args {
     /// Print one JSON document instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Also bind every reported mesh to its curvenets as the bake does, and
+    /// report the binding: cut-vertices, cut-faces, cracks, islands removed,
+    /// the unknowns and the factor, the time of each stage, and every warning.
+    #[arg(long)]
+    pub bind: bool,
 }
 
 #[derive(Serialize)]
@@ -30,6 +55,8 @@ struct Report {
     time_code_range: Option<(f64, f64)>,
     meshes: Vec<MeshReport>,
     curvenets: Vec<CurvenetReport>,
+    /// Every warning of the report, each naming its prim (the curvenets'
+    /// warnings are also listed per curvenet).
     warnings: Vec<String>,
 }
 
@@ -45,6 +72,43 @@ struct MeshReport {
     curvenets: Vec<String>,
     blend_shapes: Vec<BlendShapeReport>,
     blend_shape_weights: Option<Vec<f64>>,
+    /// With `--bind`: the binding of the mesh to its curvenets.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    binding: Option<BindingReport>,
+}
+
+/// `inspect --bind`: what `Binding::new` built, and how long each stage took.
+#[derive(Serialize)]
+struct BindingReport {
+    /// `None` when the binding failed (then `error` says why).
+    stats: Option<BindStatsReport>,
+    timings_ms: Option<BindTimingsReport>,
+    /// Wall time of the whole binding (analysis and sampling included).
+    total_ms: f64,
+    warnings: Vec<String>,
+    error: Option<String>,
+}
+
+#[derive(Serialize)]
+struct BindStatsReport {
+    samples: usize,
+    segments: usize,
+    cut_vertices: usize,
+    cut_faces: usize,
+    cut_halfedges: usize,
+    cracks: usize,
+    islands_removed: usize,
+    unknowns: usize,
+    constraints: usize,
+    factor_nonzeros: usize,
+}
+
+#[derive(Serialize)]
+struct BindTimingsReport {
+    surface: f64,
+    cutting: f64,
+    assembly: f64,
+    factor: f64,
 }
 
 #[derive(Serialize, Default)]
@@ -72,6 +136,103 @@ struct CurvenetReport {
     posed_frames: usize,
     control_points_at_time: Option<Vec<[f64; 3]>>,
     spline_indices: Vec<[u32; 4]>,
+    /// The neutral-pose analysis; `None` when no mesh targets the curvenet
+    /// or the analysis failed (then `error` says why).
+    analysis: Option<Analysis>,
+    /// Why the analysis failed (a `curvenet_core::Error`).
+    error: Option<AnalysisError>,
+    /// The warnings about this curvenet (also in the report's `warnings`).
+    warnings: Vec<String>,
+}
+
+#[derive(Serialize)]
+struct AnalysisError {
+    /// The `curvenet_core::Error` variant, e.g. `CoincidentTangents`.
+    kind: String,
+    /// The message, starting with the curvenet's prim path.
+    message: String,
+}
+
+#[derive(Serialize)]
+struct Analysis {
+    /// The mesh analysed against (its projection pose).
+    mesh: String,
+    mean_edge_length: f64,
+    bounding_box_diagonal: f64,
+    control_points: usize,
+    /// Pool indices used by no spline.
+    unused_control_points: Vec<u32>,
+    splines: usize,
+    intersections: Vec<IntersectionReport>,
+    /// Number of intersections by valence (JSON keys are the valences).
+    intersections_by_valence: BTreeMap<u32, usize>,
+    /// Pool indices of the anchors (valence-1 endpoints).
+    anchors: Vec<u32>,
+    curves: Vec<CurveReport>,
+    /// Indices into `curves` of the isolated closed curves.
+    isolated_closed_curves: Vec<usize>,
+    samples: usize,
+    segments: usize,
+    /// The largest distance of a neutral sample from the surface.
+    max_distance_to_surface: f64,
+    /// The spline of that sample.
+    max_distance_spline: u32,
+}
+
+#[derive(Serialize)]
+struct IntersectionReport {
+    /// The pool index of the intersection's control point.
+    point: u32,
+    valence: u32,
+    /// Its (knot) sample.
+    sample: u32,
+    /// The curve ends there, counter-clockwise around the surface normal.
+    curves_ccw: Vec<u32>,
+}
+
+#[derive(Serialize)]
+struct CurveReport {
+    splines: Vec<CurveSplineReport>,
+    start: EndReport,
+    end: EndReport,
+    /// Samples along the curve (an open curve counts both ends, an isolated
+    /// closed curve its start once).
+    samples: usize,
+    segments: usize,
+    /// Arc length of the neutral samples' polyline.
+    length: f64,
+}
+
+#[derive(Serialize)]
+struct CurveSplineReport {
+    spline: u32,
+    reversed: bool,
+}
+
+#[derive(Serialize)]
+struct EndReport {
+    /// `intersection`, `anchor` or `closed` (an isolated closed curve).
+    kind: &'static str,
+    point: u32,
+}
+
+impl From<CurveEnd> for EndReport {
+    fn from(e: CurveEnd) -> Self {
+        match e {
+            CurveEnd::Intersection(point) => Self { kind: "intersection", point },
+            CurveEnd::Anchor(point) => Self { kind: "anchor", point },
+            CurveEnd::Closed(point) => Self { kind: "closed", point },
+        }
+    }
+}
+
+impl std::fmt::Display for EndReport {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.kind {
+            "closed" => write!(f, "closed at {}", self.point),
+            kind => write!(f, "{kind} {}", self.point),
+        }
+    }
 }
 
 pub fn run(args: &Args) -> CliResult {
@@ -83,11 +244,29 @@ pub fn run(args: &Args) -> CliResult {
     } else {
         print!("{}", text(&report));
     }
+    let failed: Vec<&str> = report
+        .curvenets
+        .iter()
+        .filter_map(|c| c.error.as_ref())
+        .map(|e| e.message.as_str())
+        .chain(report.meshes.iter().filter_map(|m| m.binding.as_ref()?.error.as_deref()))
+        .collect();
+    if !failed.is_empty() {
+        return Err(CliError::Input(format!(
+            "the analysis or binding of {} prim{} failed:\n  {}",
+            failed.len(),
+            if failed.len() == 1 { "" } else { "s" },
+            failed.join("\n  ")
+        )));
+    }
     Ok(())
 }
 
 fn build(stage: &Stage, args: &Args) -> CliResult<Report> {
-    let mut meshes = stage.deformed_meshes()?;
+    // All deformed meshes stay available to find the mesh of a curvenet,
+    // even when `--prim` selects the curvenet alone.
+    let all_meshes = stage.deformed_meshes()?;
+    let mut meshes: Vec<&MeshData> = all_meshes.iter().collect();
     let mut curvenets = stage.curvenets()?;
     if let Some(prim) = &args.prim {
         meshes.retain(|m| &m.path == prim);
@@ -97,14 +276,24 @@ fn build(stage: &Stage, args: &Args) -> CliResult<Report> {
         }
     }
     let mut warnings = Vec::new();
-    let mesh_reports = meshes
+    let mut mesh_reports = meshes
         .iter()
         .map(|m| mesh_report(stage, m, args.time, &mut warnings))
         .collect::<CliResult<Vec<_>>>()?;
-    let curvenet_reports = curvenets
-        .iter()
-        .map(|c| curvenet_report(stage, c, args.time))
-        .collect::<CliResult<Vec<_>>>()?;
+    if args.bind {
+        for (report, m) in mesh_reports.iter_mut().zip(&meshes) {
+            let b = binding_report(stage, m)?;
+            warnings.extend(b.warnings.iter().map(|w| format!("{}: {w}", m.path)));
+            report.binding = Some(b);
+        }
+    }
+    let mut surfaces: Vec<Option<Result<Surface, curvenet_core::Error>>> = (0..all_meshes.len()).map(|_| None).collect();
+    let mut curvenet_reports = Vec::with_capacity(curvenets.len());
+    for c in &curvenets {
+        let r = curvenet_report(stage, c, args.time, &all_meshes, &mut surfaces)?;
+        warnings.extend(r.warnings.iter().cloned());
+        curvenet_reports.push(r);
+    }
     let known: std::collections::HashSet<&str> = curvenets.iter().map(|c| c.path.as_str()).collect();
     if args.prim.is_none() {
         for m in &meshes {
@@ -126,7 +315,7 @@ fn build(stage: &Stage, args: &Args) -> CliResult<Report> {
 
 fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Vec<String>) -> CliResult<MeshReport> {
     let n = m.projection_points.len();
-    let topo = curvenet_core::PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, n)
+    let topo = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, n)
         .map_err(|e| CliError::Input(format!("{}: {e}", m.path)))?;
     let mut face_sizes = FaceSizes::default();
     for c in &m.face_vertex_counts {
@@ -164,13 +353,150 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
             })
             .collect(),
         blend_shape_weights,
+        binding: None,
     })
 }
 
-fn curvenet_report(stage: &Stage, c: &CurvenetData, time: Option<f64>) -> CliResult<CurvenetReport> {
+/// Binds `m` as the bake does (`super::bind_mesh`). A core error is part of
+/// the report (the command then exits 2); a stage that breaks the contract is
+/// an error of the command.
+fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
+    let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+    let start = std::time::Instant::now();
+    let bound = super::bind_mesh(m, &nets);
+    let total_ms = start.elapsed().as_secs_f64() * 1e3;
+    Ok(match bound {
+        Ok(b) => {
+            let (st, t) = (b.stats(), b.timings());
+            BindingReport {
+                stats: Some(BindStatsReport {
+                    samples: st.samples,
+                    segments: st.segments,
+                    cut_vertices: st.cut_vertices,
+                    cut_faces: st.cut_faces,
+                    cut_halfedges: st.cut_halfedges,
+                    cracks: st.cracks,
+                    islands_removed: st.islands_removed,
+                    unknowns: st.unknowns,
+                    constraints: st.constraints,
+                    factor_nonzeros: st.factor_nonzeros,
+                }),
+                timings_ms: Some(BindTimingsReport {
+                    surface: t.surface_ms,
+                    cutting: t.cutting_ms,
+                    assembly: t.assembly_ms,
+                    factor: t.factor_ms,
+                }),
+                total_ms,
+                warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
+                error: None,
+            }
+        }
+        Err(e) => BindingReport { stats: None, timings_ms: None, total_ms, warnings: Vec::new(), error: Some(e.to_string()) },
+    })
+}
+
+/// A mesh's surface in its projection pose, built once for all the
+/// curvenets that target it.
+struct Surface {
+    path: String,
+    bvh: ClosestPointBvh,
+    mean_edge_length: f64,
+    diagonal: f64,
+}
+
+impl Surface {
+    fn new(m: &MeshData) -> Result<Self, curvenet_core::Error> {
+        let mesh = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())?;
+        let bvh = ClosestPointBvh::new(&mesh, &m.projection_points)?;
+        Ok(Self {
+            path: m.path.clone(),
+            bvh,
+            mean_edge_length: mesh.mean_edge_length(&m.projection_points),
+            diagonal: curvenet_core::mesh::bounding_box_diagonal(&m.projection_points),
+        })
+    }
+}
+
+fn curvenet_report(
+    stage: &Stage,
+    c: &CurvenetData,
+    time: Option<f64>,
+    meshes: &[MeshData],
+    surfaces: &mut [Option<Result<Surface, curvenet_core::Error>>],
+) -> CliResult<CurvenetReport> {
+    let mut warnings = Vec::new();
     let control_points_at_time = match time {
-        Some(_) => Some(stage.posed_pool(c, time)?.unwrap_or_else(|| c.pool.clone())),
+        Some(t) => {
+            let pool = stage.posed_pool(c, time)?;
+            if let Some(pool) = &pool {
+                let bad: Vec<u32> =
+                    (0..pool.len() as u32).filter(|&i| !pool[i as usize].iter().all(|x| x.is_finite())).collect();
+                if !bad.is_empty() {
+                    warnings.push(format!(
+                        "{}: at time {t} the posed pool (primvars:curvenet:cv) has {} non-finite control point{}: {} \
+                         (control point {} is {:?})",
+                        c.path,
+                        bad.len(),
+                        plural(bad.len()),
+                        list(&bad),
+                        bad[0],
+                        pool[bad[0] as usize]
+                    ));
+                }
+            }
+            Some(pool.unwrap_or_else(|| c.pool.clone()))
+        }
         None => None,
+    };
+    let unused = unused_control_points(c);
+    if !unused.is_empty() {
+        warnings.push(format!(
+            "{}: {} control point{} of the pool {} used by no spline: {}",
+            c.path,
+            unused.len(),
+            plural(unused.len()),
+            if unused.len() == 1 { "is" } else { "are" },
+            list(&unused)
+        ));
+    }
+    let targeting: Vec<usize> = (0..meshes.len()).filter(|&m| meshes[m].curvenets.contains(&c.path)).collect();
+    let (analysis, error) = match targeting.first() {
+        None => {
+            warnings.push(format!(
+                "{}: no deformed mesh targets this curvenet (rel curvenet:curvenets), so it cannot be analysed \
+                 against a surface",
+                c.path
+            ));
+            (None, None)
+        }
+        Some(&m) => {
+            if targeting.len() > 1 {
+                let paths: Vec<&str> = targeting.iter().map(|&k| meshes[k].path.as_str()).collect();
+                warnings.push(format!(
+                    "{}: {} meshes target this curvenet ({}); it is analysed against the first, {}",
+                    c.path,
+                    targeting.len(),
+                    paths.join(", "),
+                    meshes[m].path
+                ));
+            }
+            let surface = surfaces[m].get_or_insert_with(|| Surface::new(&meshes[m]));
+            let result = match surface {
+                Ok(surface) => analyse(c, surface, unused, &mut warnings),
+                Err(e) => Err(e.clone()),
+            };
+            match result {
+                Ok(a) => (Some(a), None),
+                Err(e) => {
+                    let message = match surface {
+                        Ok(_) => format!("{}: {e}", c.path),
+                        Err(_) => format!("{}: cannot analyse against mesh {}: {e}", c.path, meshes[m].path),
+                    };
+                    (None, Some(AnalysisError { kind: error_kind(&e), message }))
+                }
+            }
+        }
     };
     Ok(CurvenetReport {
         path: c.path.clone(),
@@ -180,7 +506,161 @@ fn curvenet_report(stage: &Stage, c: &CurvenetData, time: Option<f64>) -> CliRes
         posed_frames: c.sample_times.len(),
         control_points_at_time,
         spline_indices: c.splines.clone(),
+        analysis,
+        error,
+        warnings,
     })
+}
+
+fn unused_control_points(c: &CurvenetData) -> Vec<u32> {
+    let mut used = vec![false; c.pool.len()];
+    for s in &c.splines {
+        for &p in s {
+            if let Some(u) = used.get_mut(p as usize) {
+                *u = true;
+            }
+        }
+    }
+    (0..c.pool.len() as u32).filter(|&p| !used[p as usize]).collect()
+}
+
+/// The analysis of one curvenet (neutral pool) against `surface`.
+fn analyse(
+    c: &CurvenetData,
+    surface: &Surface,
+    unused_control_points: Vec<u32>,
+    warnings: &mut Vec<String>,
+) -> Result<Analysis, curvenet_core::Error> {
+    let net = Curvenet::new(&c.splines, &c.pool)?;
+    let options = SamplingOptions::default().with_density(c.sample_density);
+    let layout = CurvenetLayout::with_closest_point(&net, &surface.bvh, surface.mean_edge_length, &options)?;
+    let topology = layout.topology();
+    let sampling = layout.sampling();
+    let samples = layout.neutral_samples();
+
+    let intersections: Vec<IntersectionReport> = layout
+        .intersections()
+        .iter()
+        .map(|fan| IntersectionReport {
+            point: fan.point(),
+            valence: topology.valence(fan.point() as usize),
+            sample: fan.sample(),
+            curves_ccw: fan.emanations().iter().map(|e| e.curve).collect(),
+        })
+        .collect();
+    let mut intersections_by_valence = BTreeMap::new();
+    for i in &intersections {
+        *intersections_by_valence.entry(i.valence).or_insert(0) += 1;
+    }
+
+    let dist = |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    let mut curves = Vec::with_capacity(topology.curves().len());
+    for (k, curve) in topology.curves().iter().enumerate() {
+        let segs = sampling.curve_segments(k);
+        let n_segments = segs.len();
+        let length: f64 = sampling.segments()[segs]
+            .iter()
+            .map(|s| dist(samples[s.samples[0] as usize], samples[s.samples[1] as usize]))
+            .sum();
+        let splines: Vec<CurveSplineReport> =
+            curve.splines.iter().map(|s| CurveSplineReport { spline: s.spline, reversed: s.reversed }).collect();
+        let names = spline_list(&splines);
+        if length < surface.mean_edge_length {
+            warnings.push(format!(
+                "{}: curve {k} (spline{} {names}) is {length:.4} long, shorter than one mean mesh edge ({:.4})",
+                c.path,
+                plural(splines.len()),
+                surface.mean_edge_length
+            ));
+        }
+        if n_segments < 2 {
+            warnings.push(format!(
+                "{}: curve {k} (spline{} {names}) has {n_segments} segment; fewer than 2 leaves it no interior sample",
+                c.path,
+                plural(splines.len())
+            ));
+        }
+        curves.push(CurveReport {
+            splines,
+            start: curve.start.into(),
+            end: curve.end.into(),
+            samples: sampling.curve_samples(k).len(),
+            segments: n_segments,
+            length,
+        });
+    }
+
+    // Distance of every neutral sample from the surface, worst per spline.
+    let distances = samples
+        .iter()
+        .map(|&p| surface.bvh.closest_point(p).map(|h| h.distance))
+        .collect::<Result<Vec<f64>, _>>()?;
+    let limit = FAR_FROM_SURFACE * surface.diagonal;
+    let (mut max_distance, mut max_spline) = (0.0f64, 0u32);
+    for s in 0..c.splines.len() {
+        let (sample, d) = sampling
+            .spline_samples(s)
+            .map(|q| (q, distances[q as usize]))
+            .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+        if d > max_distance {
+            (max_distance, max_spline) = (d, s as u32);
+        }
+        if d > limit {
+            warnings.push(format!(
+                "{}: spline {s} is {d:.4} from the surface of {} at sample {sample} ({:.1}% of its bounding-box \
+                 diagonal {:.4}; the limit is {:.0}%)",
+                c.path,
+                surface.path,
+                100.0 * d / surface.diagonal,
+                surface.diagonal,
+                100.0 * FAR_FROM_SURFACE
+            ));
+        }
+    }
+
+    Ok(Analysis {
+        mesh: surface.path.clone(),
+        mean_edge_length: surface.mean_edge_length,
+        bounding_box_diagonal: surface.diagonal,
+        control_points: c.pool.len(),
+        unused_control_points,
+        splines: c.splines.len(),
+        intersections,
+        intersections_by_valence,
+        anchors: topology.anchors().to_vec(),
+        curves,
+        isolated_closed_curves: topology.isolated_closed_curves().collect(),
+        samples: layout.n_samples(),
+        segments: layout.n_segments(),
+        max_distance_to_surface: max_distance,
+        max_distance_spline: max_spline,
+    })
+}
+
+/// The variant name of a core error (`CoincidentTangents`, ...).
+fn error_kind(e: &curvenet_core::Error) -> String {
+    format!("{e:?}").chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect()
+}
+
+fn plural(n: usize) -> &'static str {
+    if n == 1 { "" } else { "s" }
+}
+
+/// `a, b, c` (at most [`MAX_LISTED`], then how many more).
+fn list(items: &[u32]) -> String {
+    let mut s: Vec<String> = items.iter().take(MAX_LISTED).map(|i| i.to_string()).collect();
+    if items.len() > MAX_LISTED {
+        s.push(format!("and {} more", items.len() - MAX_LISTED));
+    }
+    s.join(", ")
+}
+
+fn spline_list(splines: &[CurveSplineReport]) -> String {
+    let s: Vec<String> = splines
+        .iter()
+        .map(|s| if s.reversed { format!("{} (reversed)", s.spline) } else { s.spline.to_string() })
+        .collect();
+    s.join(", ")
 }
 
 fn text(r: &Report) -> String {
@@ -197,6 +677,9 @@ fn text(r: &Report) -> String {
             m.mean_edge_length, m.bounding_box_diagonal, m.rest_pose_frames
         );
         let _ = writeln!(s, "  curvenets: {}", m.curvenets.join(", "));
+        if let Some(b) = &m.binding {
+            binding_text(&mut s, b);
+        }
         for (k, b) in m.blend_shapes.iter().enumerate() {
             let w = m.blend_shape_weights.as_ref().map(|w| format!(", weight {}", w[k])).unwrap_or_default();
             let _ = writeln!(
@@ -212,9 +695,105 @@ fn text(r: &Report) -> String {
             "curvenet {}: {} control points, {} splines, sample density {}, {} posed frames",
             c.path, c.control_points, c.splines, c.sample_density, c.posed_frames
         );
+        if let Some(e) = &c.error {
+            let _ = writeln!(s, "  error ({}): {}", e.kind, e.message);
+        }
+        if let Some(a) = &c.analysis {
+            analysis_text(&mut s, a);
+        }
     }
     for w in &r.warnings {
         let _ = writeln!(s, "warning: {w}");
     }
     s
+}
+
+fn binding_text(s: &mut String, b: &BindingReport) {
+    if let Some(e) = &b.error {
+        let _ = writeln!(s, "  binding failed after {:.1} ms: {e}", b.total_ms);
+    }
+    if let (Some(st), Some(t)) = (&b.stats, &b.timings_ms) {
+        let _ = writeln!(
+            s,
+            "  binding: {} samples, {} segments -> {} cut-vertices, {} cut-faces, {} cut-halfedges, {} crack{}, {} island{} removed",
+            st.samples,
+            st.segments,
+            st.cut_vertices,
+            st.cut_faces,
+            st.cut_halfedges,
+            st.cracks,
+            plural(st.cracks),
+            st.islands_removed,
+            plural(st.islands_removed)
+        );
+        let _ = writeln!(
+            s,
+            "  binding: {} unknowns, {} constraint rows, {} factor nonzeros",
+            st.unknowns, st.constraints, st.factor_nonzeros
+        );
+        let _ = writeln!(
+            s,
+            "  binding time: {:.1} ms (surface {:.1}, cutting {:.1}, assembly {:.1}, factor {:.1}; the rest is analysis and sampling)",
+            b.total_ms, t.surface, t.cutting, t.assembly, t.factor
+        );
+    }
+}
+
+fn analysis_text(s: &mut String, a: &Analysis) {
+    let by_valence: Vec<String> =
+        a.intersections_by_valence.iter().rev().map(|(v, n)| format!("{n} of valence {v}")).collect();
+    let _ = writeln!(
+        s,
+        "  analysis against {} (neutral pool, projection pose): {} intersections ({}), {} anchors, {} curves, \
+         {} isolated closed curve{}, {} samples, {} segments",
+        a.mesh,
+        a.intersections.len(),
+        if by_valence.is_empty() { "none".to_string() } else { by_valence.join(", ") },
+        a.anchors.len(),
+        a.curves.len(),
+        a.isolated_closed_curves.len(),
+        plural(a.isolated_closed_curves.len()),
+        a.samples,
+        a.segments
+    );
+    let _ = writeln!(
+        s,
+        "  farthest sample from the surface: {:.4} ({:.2}% of the diagonal {:.4}), on spline {}; unused control points: {}",
+        a.max_distance_to_surface,
+        100.0 * a.max_distance_to_surface / a.bounding_box_diagonal,
+        a.bounding_box_diagonal,
+        a.max_distance_spline,
+        if a.unused_control_points.is_empty() { "none".to_string() } else { list(&a.unused_control_points) }
+    );
+    for i in &a.intersections {
+        let curves: Vec<String> = i.curves_ccw.iter().map(|c| c.to_string()).collect();
+        let _ = writeln!(
+            s,
+            "  intersection at control point {}: valence {}, sample {}, curves counter-clockwise {}",
+            i.point,
+            i.valence,
+            i.sample,
+            curves.join(", ")
+        );
+    }
+    if !a.anchors.is_empty() {
+        let anchors: Vec<String> = a.anchors.iter().map(|p| p.to_string()).collect();
+        let _ = writeln!(s, "  anchors at control points {}", anchors.join(", "));
+    }
+    for (k, c) in a.curves.iter().enumerate() {
+        let ends = if c.start.kind == "closed" { c.start.to_string() } else { format!("{} to {}", c.start, c.end) };
+        let _ = writeln!(
+            s,
+            "  curve {k}: {ends}, spline{} {}, {} samples, {} segments, length {:.4}",
+            plural(c.splines.len()),
+            spline_list(&c.splines),
+            c.samples,
+            c.segments,
+            c.length
+        );
+    }
+    if !a.isolated_closed_curves.is_empty() {
+        let closed: Vec<String> = a.isolated_closed_curves.iter().map(|c| c.to_string()).collect();
+        let _ = writeln!(s, "  isolated closed curves: {}", closed.join(", "));
+    }
 }

@@ -11,12 +11,19 @@ pub enum CliError {
     Usd(#[from] curvenet_schema::usd::UsdError),
     #[error("{0}")]
     Input(String),
+    /// The core refused the input (names the element); `context` names the prim and frame.
+    #[error("{context}: {source}")]
+    Core { context: String, source: curvenet_core::Error },
+    /// An I/O failure (writing output): worth retrying.
+    #[error("{context}: {source}")]
+    Io { context: String, source: std::io::Error },
 }
 
 impl CliError {
     pub fn exit_code(&self) -> u8 {
         match self {
             CliError::Usd(curvenet_schema::usd::UsdError::Open { message, .. }) if is_transient(message) => 75,
+            CliError::Io { .. } => 75,
             _ => 2,
         }
     }
@@ -29,3 +36,36 @@ fn is_transient(message: &str) -> bool {
 }
 
 pub type CliResult<T = ()> = Result<T, CliError>;
+
+/// Binds `mesh` (its projection pose) to its curvenets as the bake and
+/// `inspect --bind` do: each curvenet sampled at its own density against the
+/// mesh's surface, then one [`curvenet_core::Binding`] over all of them.
+/// Errors name the curvenet or the mesh.
+pub fn bind_mesh(
+    mesh: &curvenet_schema::MeshData,
+    nets: &[curvenet_schema::CurvenetData],
+) -> CliResult<curvenet_core::Binding> {
+    use curvenet_core::{BindOptions, Binding, ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+    let core = |context: String| move |source| CliError::Core { context, source };
+    let n = mesh.projection_points.len();
+    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).map_err(core(mesh.path.clone()))?;
+    let bvh = ClosestPointBvh::new(&topology, &mesh.projection_points).map_err(core(mesh.path.clone()))?;
+    let mean_edge = topology.mean_edge_length(&mesh.projection_points);
+    let layouts = nets
+        .iter()
+        .map(|net| {
+            let context = || format!("{} (bound to {})", net.path, mesh.path);
+            let c = Curvenet::new(&net.splines, &net.pool).map_err(core(context()))?;
+            let options = SamplingOptions::default().with_density(net.sample_density);
+            CurvenetLayout::with_closest_point(&c, &bvh, mean_edge, &options).map_err(core(context()))
+        })
+        .collect::<CliResult<Vec<_>>>()?;
+    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
+    Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default())
+        .map_err(core(format!("{} (binding {})", mesh.path, net_list(nets))))
+}
+
+/// `/A/Net, /B/Net`: the curvenets' paths for messages.
+pub fn net_list(nets: &[curvenet_schema::CurvenetData]) -> String {
+    nets.iter().map(|n| n.path.as_str()).collect::<Vec<_>>().join(", ")
+}
