@@ -17,12 +17,18 @@ struct Cli {
 enum Command {
     /// Print what a stage holds for curvenet deformation: meshes, curvenets, frames, blend shapes.
     Inspect(cli::inspect::Args),
+    /// Deform every mesh of a shot over a frame range and write the points as an override layer.
+    Bake(cli::bake::Args),
+    /// Measure binding and per-frame solve times on the hand fixtures (the paper's Table 1).
+    Bench(cli::bench::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(args) => cli::inspect::run(&args),
+        Command::Bake(args) => cli::bake::run(&args),
+        Command::Bench(args) => cli::bench::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,7 @@
 //! Subcommands of the `curvenet` command line.
 
+pub mod bake;
+pub mod bench;
 pub mod inspect;
 
 /// A command-line failure. Bad input (exit 2) is kept apart from failures

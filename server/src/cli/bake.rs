@@ -1,0 +1,520 @@
+//! `curvenet bake INPUT --out OUTPUT [--frames A-B] [--threads N] [--quiet]`:
+//! deforms every mesh of a shot over a frame range and writes the points as
+//! an override layer (schema/README.md, "Bake output").
+//!
+//! 1. Every deformed mesh is bound once (`Binding::new` over one
+//!    `CurvenetLayout` per curvenet, sampled at the curvenet's density); the
+//!    meshes bind in parallel.
+//! 2. Frames go in chunks: the reading thread (the USD stage is not `Send`)
+//!    reads a chunk's posed pools, rest poses and blend-shape weights and
+//!    checks they are finite,
+//!    while the previous chunk solves on the thread pool, one `Workspace` per
+//!    worker, every (frame, mesh) pair an independent task. Results keep
+//!    frame order; the first failing frame in time order is reported. Blend
+//!    shapes are added after the deformation, mapped by each vertex's
+//!    interpolated deformation gradient (paper §5).
+//! 3. The points (f32) are written as `over` opinions, atomically: a
+//!    temporary file beside OUTPUT, synced, renamed over it. A failed bake
+//!    leaves neither OUTPUT nor a temporary file.
+
+use std::num::NonZeroUsize;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+use curvenet_core::{Binding, FrameInput, Workspace};
+use curvenet_schema::usd::{LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
+use curvenet_schema::{CurvenetData, MeshData};
+use rayon::prelude::*;
+
+use super::{CliError, CliResult, net_list};
+
+/// Most frames' inputs held at once (two chunks: one solving, one read).
+const MAX_CHUNK_FRAMES: usize = 256;
+/// Budget for one chunk's inputs (posed pools and rest poses, f64).
+const CHUNK_BYTES: usize = 256 << 20;
+/// Longest frame range accepted (guards against a typo like 1-1000000000).
+const MAX_FRAMES: i64 = 1_000_000;
+
+const AFTER_HELP: &str = "\
+Output: a layer holding only `over` opinions with the deformed `point3f[] points`
+time samples of every deformed mesh at its composed path (and over its
+ancestors), plus startTimeCode/endTimeCode of the baked frames. Sublayer it
+above (stronger than) INPUT. The file is replaced atomically: a failed bake
+leaves OUTPUT as it was and no temporary file. The same bake writes the same bytes.
+
+Frames: A-B is every integer time code from A to B inclusive (A alone: one
+frame). Without --frames: the stage's startTimeCode..endTimeCode, else the
+union of the curvenets' and meshes' time samples.
+
+Exit status: 0 success; 2 bad input, not worth retrying (a stage that breaks the
+contract, a bad frame - non-finite or miscounted control points, a core error -
+named as `frame F, PRIM: ...`, a bad --frames or output extension); 75 an I/O
+failure writing OUTPUT, worth retrying: this includes an output directory that
+does not exist (checked before any work, so a retry costs nothing).
+
+Progress: on a terminal, a line of frames done, frames per second and ETA; else
+one summary line on stderr at the end (meshes, frames, bind and mean solve time
+per frame, output). --quiet prints neither; warnings and errors always go to stderr.";
+
+#[derive(clap::Args)]
+#[command(after_help = AFTER_HELP)]
+pub struct Args {
+    /// The shot stage to read (.usda, .usdc, .usdz).
+    pub input: PathBuf,
+    /// The layer to write: .usda (text) or .usdc (binary), by its extension.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Frames to bake: `A-B` (inclusive integer time codes) or `A`.
+    #[arg(long, value_name = "A-B", value_parser = parse_frames, allow_hyphen_values = true)]
+    pub frames: Option<FrameRange>,
+    /// Worker threads for the solves (default: one per CPU).
+    #[arg(long)]
+    pub threads: Option<NonZeroUsize>,
+    /// No progress line and no summary.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// An inclusive range of integer time codes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameRange {
+    pub first: i64,
+    pub last: i64,
+}
+
+/// `A-B` or `A`; either bound may be negative (`-5--1`).
+pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
+    let compact: String = s.chars().filter(|c| !c.is_whitespace()).collect();
+    let s = compact.as_str();
+    // The separating '-' is the first one that follows a digit.
+    let split = s.char_indices().find(|&(i, c)| c == '-' && i > 0 && s.as_bytes()[i - 1].is_ascii_digit());
+    let (a, b) = match split {
+        Some((i, _)) => (&s[..i], &s[i + 1..]),
+        None => (s, s),
+    };
+    let int = |x: &str| x.trim().parse::<i64>().map_err(|_| format!("{x:?} is not an integer frame (expected A-B or A)"));
+    let (first, last) = (int(a)?, int(b)?);
+    if first > last {
+        return Err(format!("{first}-{last} is empty: the first frame must not be after the last"));
+    }
+    if last - first >= MAX_FRAMES {
+        return Err(format!("{first}-{last} is more than {MAX_FRAMES} frames"));
+    }
+    Ok(FrameRange { first, last })
+}
+
+/// One deformed mesh, bound.
+struct MeshJob {
+    mesh: MeshData,
+    nets: Vec<CurvenetData>,
+    binding: Binding,
+    /// Whether each frame's rest pose is read and passed to the solve (the
+    /// mesh's `points` are animated or differ from the projection pose).
+    reads_rest: bool,
+    /// The mesh's UsdSkel blend shapes, applied after the deformation in the
+    /// per-vertex frames of the interpolated gradients (paper §5).
+    shapes: BlendShapes,
+}
+
+/// One mesh's input at one frame.
+struct MeshFrame {
+    posed: Vec<Option<Vec<[f64; 3]>>>,
+    rest: Option<Vec<[f64; 3]>>,
+    /// Blend-shape weights (empty when the mesh has no blend shapes).
+    weights: Vec<f64>,
+}
+
+/// One frame's inputs, one entry per mesh job.
+struct FrameData {
+    time: f64,
+    meshes: Vec<MeshFrame>,
+}
+
+pub fn run(args: &Args) -> CliResult {
+    let started = Instant::now();
+    // Cheap checks first, so a bad command fails before any work.
+    LayerFormat::from_path(&args.out).map_err(write_error)?;
+    check_output_dir(&args.out)?;
+    if same_file(&args.input, &args.out) {
+        return Err(CliError::Input(format!("{}: the output would replace the input", args.out.display())));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(args.threads.map_or(0, NonZeroUsize::get))
+        .build()
+        .map_err(|e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))))?;
+
+    let stage = Stage::open(&args.input)?;
+    let meshes = stage.deformed_meshes()?;
+    if meshes.is_empty() {
+        return Err(CliError::Input(format!(
+            "{}: no Mesh has rel curvenet:curvenets, so there is nothing to bake",
+            stage.path()
+        )));
+    }
+    let mut inputs = Vec::with_capacity(meshes.len());
+    for mesh in meshes {
+        let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+        let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
+        inputs.push((mesh, nets, reads_rest));
+    }
+    let frames = frames(&stage, args.frames, &inputs)?;
+
+    let t_bind = Instant::now();
+    let jobs: Vec<MeshJob> = pool.install(|| inputs.into_par_iter().map(|(m, n, r)| bind(m, n, r)).collect::<CliResult<_>>())?;
+    let bind_ms = ms(t_bind.elapsed());
+    for job in &jobs {
+        for w in job.binding.warnings() {
+            eprintln!("curvenet: warning: {}: {w}", job.mesh.path);
+        }
+    }
+
+    // Read chunk k + 1 on this thread while chunk k solves on the pool.
+    let per_frame_bytes: usize = jobs
+        .iter()
+        .map(|j| 24 * (j.nets.iter().map(|n| n.pool.len()).sum::<usize>() + if j.reads_rest { j.binding.n_vertices() } else { 0 }))
+        .sum();
+    let threads = pool.current_num_threads();
+    let chunk = (4 * threads).min(MAX_CHUNK_FRAMES).min((CHUNK_BYTES / per_frame_bytes.max(1)).max(1));
+    let progress = Progress::new(frames.len(), jobs.len(), args.quiet);
+    let workspaces = Workspaces::new(jobs.len());
+    let solve_ns = AtomicU64::new(0);
+    let mut baked: Vec<Vec<(f64, Vec<[f32; 3]>)>> = jobs.iter().map(|_| Vec::with_capacity(frames.len())).collect();
+    let mut read_time = Duration::ZERO;
+    let mut chunks = frames.chunks(chunk);
+    let t_read = Instant::now();
+    let mut next = chunks.next().map(|c| read_chunk(&stage, &jobs, c)).transpose()?;
+    read_time += t_read.elapsed();
+    while let Some(current) = next.take() {
+        let (solved, read) = std::thread::scope(|s| {
+            let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, &workspaces, &solve_ns, &progress)));
+            let t_read = Instant::now();
+            let read = chunks.next().map(|c| read_chunk(&stage, &jobs, c)).transpose();
+            read_time += t_read.elapsed();
+            (solving.join().expect("a solve thread panicked"), read)
+        });
+        // An error of this chunk comes before any of the next one's.
+        for (frame, results) in current.iter().zip(solved?) {
+            for (k, points) in results.into_iter().enumerate() {
+                baked[k].push((frame.time, points));
+            }
+        }
+        next = read?;
+    }
+    progress.finish();
+
+    let t_write = Instant::now();
+    let range = (frames[0], frames[frames.len() - 1]);
+    let doc = format!(
+        "Baked by curvenet {} (`curvenet bake`) from {}: the deformed points of {} over time codes {}..{}, \
+         as over opinions only. Sublayer above (stronger than) the input.",
+        env!("CARGO_PKG_VERSION"),
+        args.input.display(),
+        jobs.iter().map(|j| j.mesh.path.as_str()).collect::<Vec<_>>().join(", "),
+        range.0,
+        range.1
+    );
+    let prims = jobs.iter().zip(baked).map(|(j, samples)| PrimPoints { prim: j.mesh.path.clone(), samples }).collect();
+    write_points_overrides(&args.out, prims, range, &doc).map_err(write_error)?;
+    let write_ms = ms(t_write.elapsed());
+
+    if !args.quiet {
+        let vertices: usize = jobs.iter().map(|j| j.binding.n_vertices()).sum();
+        eprintln!(
+            "curvenet: baked {} mesh{} ({vertices} vertices) x {} frame{} ({}) to {} in {:.2} s: bind {:.0} ms, \
+             mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms",
+            jobs.len(),
+            if jobs.len() == 1 { "" } else { "es" },
+            frames.len(),
+            if frames.len() == 1 { "" } else { "s" },
+            frame_list(&frames),
+            args.out.display(),
+            started.elapsed().as_secs_f64(),
+            bind_ms,
+            solve_ns.load(Ordering::Relaxed) as f64 / 1e6 / frames.len() as f64,
+            if threads == 1 { "" } else { "s" },
+            ms(read_time),
+            write_ms,
+        );
+    }
+    Ok(())
+}
+
+/// The frames to bake: `--frames`, else the stage's time-code range, else
+/// the union of the time samples of the meshes' points and curvenets' pools.
+fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[(MeshData, Vec<CurvenetData>, bool)]) -> CliResult<Vec<f64>> {
+    if let Some(r) = requested {
+        return Ok((r.first..=r.last).map(|t| t as f64).collect());
+    }
+    if let Some((start, end)) = stage.time_code_range() {
+        let (first, last) = (start.ceil(), end.floor());
+        if !(first <= last) || last - first >= MAX_FRAMES as f64 {
+            return Err(CliError::Input(format!(
+                "{}: startTimeCode {start} .. endTimeCode {end} holds no bakeable frame range; pass --frames A-B",
+                stage.path()
+            )));
+        }
+        return Ok((first as i64..=last as i64).map(|t| t as f64).collect());
+    }
+    let mut times: Vec<f64> = inputs
+        .iter()
+        .flat_map(|(m, nets, _)| m.rest_sample_times.iter().chain(nets.iter().flat_map(|n| &n.sample_times)))
+        .copied()
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    if times.is_empty() {
+        return Err(CliError::Input(format!(
+            "{}: the stage authors no startTimeCode/endTimeCode and no time samples on its meshes or curvenets; \
+             pass --frames A-B",
+            stage.path()
+        )));
+    }
+    Ok(times)
+}
+
+fn bind(mesh: MeshData, nets: Vec<CurvenetData>, reads_rest: bool) -> CliResult<MeshJob> {
+    let n = mesh.projection_points.len();
+    let binding = super::bind_mesh(&mesh, &nets)?;
+    let shapes = mesh
+        .blend_shapes
+        .iter()
+        .map(|s| {
+            let inbetweens = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
+            BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), inbetweens)
+                .map_err(|source| CliError::Core { context: s.prim.clone(), source })
+        })
+        .collect::<CliResult<Vec<_>>>()?;
+    let shapes = BlendShapes::new(n, shapes);
+    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes })
+}
+
+/// Reads one chunk's inputs and checks they are finite; errors name the frame
+/// and the prim.
+fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<FrameData>> {
+    times
+        .iter()
+        .map(|&t| {
+            let at = |e: curvenet_schema::usd::UsdError| CliError::Input(format!("frame {t}, {e}"));
+            let meshes = jobs
+                .iter()
+                .map(|job| {
+                    let mut posed = Vec::with_capacity(job.nets.len());
+                    for net in &job.nets {
+                        let pool = stage.posed_pool(net, Some(t)).map_err(at)?;
+                        if let Some(pool) = &pool {
+                            check_finite(pool, t, &net.path, "primvars:curvenet:cv", "control point")?;
+                        }
+                        posed.push(pool);
+                    }
+                    let rest = match job.reads_rest {
+                        true => {
+                            let rest = stage.rest_points(&job.mesh, Some(t)).map_err(at)?;
+                            check_finite(&rest, t, &job.mesh.path, "points", "point")?;
+                            Some(rest)
+                        }
+                        false => None,
+                    };
+                    let weights = match job.shapes.is_empty() {
+                        true => Vec::new(),
+                        false => stage.blend_shape_weights(&job.mesh, Some(t)).map_err(at)?,
+                    };
+                    Ok(MeshFrame { posed, rest, weights })
+                })
+                .collect::<CliResult<Vec<_>>>()?;
+            Ok(FrameData { time: t, meshes })
+        })
+        .collect()
+}
+
+fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: &str) -> CliResult {
+    let bad: Vec<usize> = (0..points.len()).filter(|&i| !points[i].iter().all(|x| x.is_finite())).collect();
+    match bad.first() {
+        None => Ok(()),
+        Some(&i) => Err(CliError::Input(format!(
+            "frame {t}, {prim}: {attribute} {what} {i} is {:?}, not finite{}",
+            points[i],
+            if bad.len() > 1 { format!(" ({} non-finite {what}s in all)", bad.len()) } else { String::new() }
+        ))),
+    }
+}
+
+/// Solves every (frame, mesh) pair of a chunk in parallel, in order.
+fn solve_chunk(
+    jobs: &[MeshJob],
+    chunk: &[FrameData],
+    workspaces: &Workspaces,
+    solve_ns: &AtomicU64,
+    progress: &Progress,
+) -> CliResult<Vec<Vec<Vec<[f32; 3]>>>> {
+    let n = jobs.len();
+    let solved: Vec<CliResult<Vec<[f32; 3]>>> = (0..chunk.len() * n)
+        .into_par_iter()
+        .map_init(
+            || workspaces.lease(),
+            |lease, item| {
+                let (frame, k) = (&chunk[item / n], item % n);
+                let r = solve(&jobs[k], frame.time, &frame.meshes[k], lease.get(k, &jobs[k].binding), solve_ns);
+                progress.tick();
+                r
+            },
+        )
+        .collect();
+    let mut solved = solved.into_iter();
+    (0..chunk.len()).map(|_| solved.by_ref().take(n).collect()).collect()
+}
+
+fn solve(job: &MeshJob, t: f64, input: &MeshFrame, ws: &mut Workspace, solve_ns: &AtomicU64) -> CliResult<Vec<[f32; 3]>> {
+    let t0 = Instant::now();
+    let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
+    let n = job.binding.n_vertices();
+    let mut out = vec![[0.0; 3]; n];
+    let frame = FrameInput { posed: &posed, rest: input.rest.as_deref() };
+    let context = || format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets));
+    // Gradients only when a blend shape is on at this frame.
+    let mut gradients = input.weights.iter().any(|&w| w != 0.0).then(|| vec![[0.0; 9]; n]);
+    job.binding
+        .deform(&frame, ws, &mut out, gradients.as_deref_mut())
+        .map_err(|source| CliError::Core { context: context(), source })?;
+    if let Some(g) = &gradients {
+        job.shapes.add_deformed(&input.weights, g, &mut out).map_err(|source| CliError::Core { context: context(), source })?;
+    }
+    solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    Ok(out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect())
+}
+
+/// Workspaces reused across chunks: a worker leases one set (one lazily
+/// made workspace per mesh) and returns it when its task batch ends.
+struct Workspaces {
+    meshes: usize,
+    free: Mutex<Vec<Vec<Option<Workspace>>>>,
+}
+
+struct Lease<'a> {
+    owner: &'a Workspaces,
+    set: Vec<Option<Workspace>>,
+}
+
+impl Workspaces {
+    fn new(meshes: usize) -> Self {
+        Self { meshes, free: Mutex::new(Vec::new()) }
+    }
+
+    fn lease(&self) -> Lease<'_> {
+        let set = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        Lease { owner: self, set: set.unwrap_or_else(|| (0..self.meshes).map(|_| None).collect()) }
+    }
+}
+
+impl Lease<'_> {
+    fn get(&mut self, k: usize, binding: &Binding) -> &mut Workspace {
+        self.set[k].get_or_insert_with(|| binding.workspace())
+    }
+}
+
+impl Drop for Lease<'_> {
+    fn drop(&mut self) {
+        let set = std::mem::take(&mut self.set);
+        self.owner.free.lock().unwrap_or_else(|e| e.into_inner()).push(set);
+    }
+}
+
+/// The progress line on a terminal (stderr), redrawn at most every 100 ms.
+struct Progress {
+    frames: usize,
+    meshes: usize,
+    done: AtomicUsize,
+    start: Instant,
+    /// `None` when not drawing (not a terminal, or `--quiet`).
+    last_draw: Option<Mutex<Instant>>,
+}
+
+impl Progress {
+    fn new(frames: usize, meshes: usize, quiet: bool) -> Self {
+        use std::io::IsTerminal;
+        let draw = !quiet && std::io::stderr().is_terminal();
+        let start = Instant::now();
+        Self { frames, meshes, done: AtomicUsize::new(0), start, last_draw: draw.then(|| Mutex::new(start)) }
+    }
+
+    fn tick(&self) {
+        let done = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+        let Some(last) = &self.last_draw else { return };
+        let Ok(mut last) = last.try_lock() else { return };
+        if last.elapsed() < Duration::from_millis(100) && done < self.frames * self.meshes {
+            return;
+        }
+        *last = Instant::now();
+        let frames_done = done / self.meshes.max(1);
+        let secs = self.start.elapsed().as_secs_f64();
+        let fps = frames_done as f64 / secs.max(1e-9);
+        let eta = if fps > 0.0 { format!("{:.1} s", (self.frames - frames_done) as f64 / fps) } else { "?".into() };
+        eprint!("\r\x1b[Kbaking: {frames_done}/{} frames, {fps:.1} frames/s, ETA {eta}", self.frames);
+    }
+
+    fn finish(&self) {
+        if self.last_draw.is_some() {
+            eprint!("\r\x1b[K");
+        }
+    }
+}
+
+/// Fails (exit 75, like every failure to write the output) when OUTPUT's
+/// directory does not exist, before any work is done.
+fn check_output_dir(out: &Path) -> CliResult {
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(CliError::Io {
+            context: format!("cannot write {}", out.display()),
+            source: std::io::Error::new(std::io::ErrorKind::NotADirectory, format!("{} is not a directory", dir.display())),
+        }),
+        Err(source) => Err(CliError::Io { context: format!("cannot write {}: directory {}", out.display(), dir.display()), source }),
+    }
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    matches!((std::fs::canonicalize(a), std::fs::canonicalize(b)), (Ok(a), Ok(b)) if a == b)
+}
+
+fn write_error(e: WriteError) -> CliError {
+    match e {
+        WriteError::Io { what, path, source } => CliError::Io { context: format!("{what} {path}"), source },
+        e => CliError::Input(e.to_string()),
+    }
+}
+
+/// `1-24` for a contiguous integer range, else the count of times and the ends.
+fn frame_list(frames: &[f64]) -> String {
+    let (a, b) = (frames[0], frames[frames.len() - 1]);
+    let contiguous = frames.windows(2).all(|w| w[1] - w[0] == 1.0) && a.fract() == 0.0;
+    if contiguous { format!("{a}-{b}") } else { format!("time codes {a}..{b}") }
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_ranges_parse() {
+        assert_eq!(parse_frames("1-24"), Ok(FrameRange { first: 1, last: 24 }));
+        assert_eq!(parse_frames("7"), Ok(FrameRange { first: 7, last: 7 }));
+        assert_eq!(parse_frames("-5--1"), Ok(FrameRange { first: -5, last: -1 }));
+        assert_eq!(parse_frames("-3-2"), Ok(FrameRange { first: -3, last: 2 }));
+        assert_eq!(parse_frames(" 5 - 7 "), Ok(FrameRange { first: 5, last: 7 }));
+        assert!(parse_frames("7-5").unwrap_err().contains("empty"));
+        assert!(parse_frames("1.5-3").is_err());
+        assert!(parse_frames("a-b").is_err());
+        assert!(parse_frames("").is_err());
+        assert!(parse_frames("1-100000000").is_err());
+    }
+}

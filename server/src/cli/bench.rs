@@ -1,0 +1,841 @@
+//! `curvenet bench [--json] [--meshes hand_1k4,hand_22k,hand_94k] [--repeats N]
+//! [--frames N] [--fixtures DIR] [--threads N]`: the paper's Table 1 (faces,
+//! vertices, knots, samples, cutting, factor and per-frame solve times) on
+//! the hand fixtures, plus what is needed to read those numbers.
+//!
+//! A benchmark, not a test: it never fails because a target is missed.
+//!
+//! Per mesh (`fixtures/hand/<name>.usda` or `.usdc`):
+//!
+//! - **Binding**, `--repeats` times (default 5): curvenet analysis (§3,
+//!   `CurvenetLayout::new`, outside the binding), then `Binding::new`, whose
+//!   own stage timings (surface, cutting, assembly, factor) are reported
+//!   with the wall time of the whole call (`binding_ms`; `binding_other_ms`
+//!   is the part after the factorisation: per-corner right-hand sides,
+//!   curvenet-vertex tables). Medians.
+//! - **Frames**, `--frames` poses (default 50): frame 0 is the neutral pose;
+//!   frame i rotates the control points distal to a plane across the fingers
+//!   (55 % of the pool's extent along +y, the finger direction) about the
+//!   x axis towards the palm (+z) by `60°·½(1 − cos 2πi/N)`, blended in over
+//!   a band of 10 % of the extent with a smoothstep (a smooth, deterministic
+//!   curl of every finger). Every frame runs through `Binding::deform` with
+//!   one reused `Workspace` (the allocation-free path) after one untimed
+//!   warm-up frame; the median, min and max per frame are reported.
+//! - **Where a frame goes**: `deform` cannot be split from outside, so
+//!   its parts are timed on their own, right after each timed frame (so
+//!   they see the same machine load), medians over the frames:
+//!   `Binding::solve_in_place::<9>` and `::<3>` on fixed random right-hand
+//!   sides of `n_unknowns` rows (`tri9_ms`, `tri3_ms`, `tri_share` of the
+//!   frame), and the curvenet part of the frame through the public
+//!   curvenet functions `deform` calls (`curvenet_eval_ms`: posed samples,
+//!   scaled frames, per-side and per-slot gradients).
+//!   `rest_of_frame_ms` = deform − the three: constraint rows, the two
+//!   `B` products, per-face gradients and the Poisson right-hand side,
+//!   output and finiteness checks.
+//! - **Reference**: copying a `Vec<f64>` of `factor_nonzeros × 8` bytes
+//!   twice (there and back), timed after each frame like the parts: a pure
+//!   memory-bandwidth pass of the factor's size in the same run, so that
+//!   runs on a noisy machine compare through `solve_over_reference` and
+//!   `tri_over_reference` (a solve streams the factor's values twice,
+//!   forward and backward, plus its u32 row indices).
+//! - **Clocks**: every timing is wall clock; the frame parts and the whole
+//!   binding are also measured in thread CPU time (`*_cpu_ms`, Linux), which
+//!   leaves out time the thread spent preempted on a shared machine. Targets
+//!   are judged on the wall-clock medians.
+//! - **Throughput**: the poses deformed in parallel across frames on a rayon
+//!   pool (`--threads`, default all cores), one frame per task and one
+//!   `Workspace` per thread, against the same pool with one thread; medians
+//!   of 3 runs of `max(frames, 8 × threads)` frames.
+//!
+//! `--json` prints one object: `{"threads", "repeats", "frames", "meshes":
+//! [...]}`, one entry per mesh with (at least) `mesh`, `vertices`, `faces`,
+//! `knots`, `samples`, `cutting_ms`, `factor_ms`, `solve_ms`, `binding_ms`,
+//! all the other measurements under their field names (see `MeshBench`), and `targets`
+//! (null for meshes the issue sets none for). Times are milliseconds.
+
+use std::hint::black_box;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
+use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, Mat3, PolyMesh, SamplingOptions, Workspace};
+use curvenet_schema::CurvenetData;
+use curvenet_schema::usd::Stage;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::{CliError, CliResult};
+
+/// Largest curl angle of the generated poses, degrees.
+const MAX_ANGLE_DEG: f64 = 60.0;
+/// The articulation plane, as a fraction of the pool's extent along y.
+const PLANE: f64 = 0.55;
+/// Width of the smoothstep blend across the plane, as a fraction of the extent.
+const BAND: f64 = 0.10;
+/// Repetitions of each throughput measurement.
+const THROUGHPUT_REPEATS: usize = 3;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Print one JSON object (`{"threads", "repeats", "frames", "meshes": [...]}`) instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Hand fixtures to measure (names in `<fixtures>/hand/`, comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "hand_1k4,hand_22k,hand_94k")]
+    pub meshes: Vec<String>,
+    /// Bindings per mesh (times are medians).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeats: u32,
+    /// Timed frames per mesh (frame 0 is the neutral pose).
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: u32,
+    /// The fixtures directory (relative to the current directory).
+    #[arg(long, default_value = "fixtures")]
+    pub fixtures: PathBuf,
+    /// Threads of the parallel throughput run (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Option<u32>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    threads: usize,
+    repeats: usize,
+    frames: usize,
+    meshes: Vec<MeshBench>,
+}
+
+#[derive(Serialize)]
+struct MeshBench {
+    mesh: String,
+    file: String,
+    // Table 1.
+    faces: usize,
+    vertices: usize,
+    /// Curvenet control points that are spline endpoints (knot samples).
+    knots: usize,
+    samples: usize,
+    cutting_ms: f64,
+    factor_ms: f64,
+    /// Median wall time of one `Binding::deform` (both solves and everything around them).
+    solve_ms: f64,
+    /// Whether the `*_cpu_ms` fields were measured (thread CPU time, Linux).
+    cpu_clock: bool,
+    // Sizes.
+    control_points: usize,
+    splines: usize,
+    segments: usize,
+    cut_vertices: usize,
+    cut_faces: usize,
+    unknowns: usize,
+    constraints: usize,
+    factor_nonzeros: usize,
+    // Binding.
+    repeats: usize,
+    load_ms: f64,
+    analysis_ms: f64,
+    surface_ms: f64,
+    assembly_ms: f64,
+    binding_other_ms: f64,
+    binding_ms: f64,
+    /// Thread CPU time of `Binding::new` (excludes time preempted; faer's factorisation runs on this thread).
+    binding_cpu_ms: Option<f64>,
+    // Frames.
+    frames: usize,
+    max_angle_deg: f64,
+    solve_min_ms: f64,
+    solve_max_ms: f64,
+    tri9_ms: f64,
+    tri3_ms: f64,
+    /// (tri9 + tri3) / solve.
+    tri_share: f64,
+    /// The curvenet part of a frame alone (samples, scaled frames, per-side
+    /// and per-slot gradients), timed through the public curvenet functions.
+    curvenet_eval_ms: f64,
+    /// deform − tri9 − tri3 − curvenet_eval.
+    rest_of_frame_ms: f64,
+    reference_bytes: usize,
+    reference_ms: f64,
+    solve_over_reference: f64,
+    tri_over_reference: f64,
+    // The same in thread CPU time (medians; null without a thread CPU clock).
+    solve_cpu_ms: Option<f64>,
+    tri9_cpu_ms: Option<f64>,
+    tri3_cpu_ms: Option<f64>,
+    tri_share_cpu: Option<f64>,
+    curvenet_eval_cpu_ms: Option<f64>,
+    rest_of_frame_cpu_ms: Option<f64>,
+    reference_cpu_ms: Option<f64>,
+    solve_over_reference_cpu: Option<f64>,
+    threads: usize,
+    serial_frames_per_s: f64,
+    parallel_frames_per_s: f64,
+    parallel_speedup: f64,
+    // Sanity of the frames (relative to the mesh's bounding-box diagonal).
+    neutral_max_error: f64,
+    max_displacement: f64,
+    warnings: Vec<String>,
+    targets: Option<Targets>,
+}
+
+#[derive(Serialize, Clone, Copy)]
+struct Targets {
+    solve_ms: f64,
+    solve_stretch_ms: f64,
+    binding_ms: f64,
+    solve_met: bool,
+    solve_stretch_met: bool,
+    binding_met: bool,
+}
+
+/// The issue's targets: (solve, stretch solve, binding) in ms.
+fn targets_for(mesh: &str) -> Option<(f64, f64, f64)> {
+    match mesh {
+        "hand_22k" => Some((9.7, 5.0, 150.0)),
+        "hand_94k" => Some((35.0, 20.0, 560.0)),
+        _ => None,
+    }
+}
+
+pub fn run(args: &Args) -> CliResult {
+    let dir = &args.fixtures;
+    if !dir.is_dir() {
+        return Err(CliError::Input(format!(
+            "fixtures directory `{}` not found (run from the repository root or pass --fixtures DIR)",
+            dir.display()
+        )));
+    }
+    let files = args.meshes.iter().map(|m| fixture_file(dir, m)).collect::<CliResult<Vec<_>>>()?;
+    let threads = match args.threads {
+        Some(t) => t as usize,
+        None => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
+    };
+    let (repeats, frames) = (args.repeats as usize, args.frames as usize);
+    let mut report = Report { threads, repeats, frames, meshes: Vec::new() };
+    for (name, file) in args.meshes.iter().zip(&files) {
+        if !args.json {
+            eprintln!("curvenet bench: {name}: {repeats} bindings, {frames} frames…");
+        }
+        report.meshes.push(bench_mesh(name, file, repeats, frames, threads)?);
+    }
+    if args.json {
+        let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Input(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print!("{}", text_report(&report));
+    }
+    Ok(())
+}
+
+fn fixture_file(dir: &Path, mesh: &str) -> CliResult<PathBuf> {
+    if mesh.is_empty() || mesh.contains(['/', '\\']) {
+        return Err(CliError::Input(format!("--meshes: `{mesh}` is not a hand fixture name (e.g. hand_22k)")));
+    }
+    for ext in ["usda", "usdc", "usd"] {
+        let p = dir.join("hand").join(format!("{mesh}.{ext}"));
+        if p.is_file() {
+            return Ok(p);
+        }
+    }
+    Err(CliError::Input(format!("--meshes: no fixture `{mesh}` in {} (.usda, .usdc or .usd)", dir.join("hand").display())))
+}
+
+fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_ {
+    move |source| CliError::Core { context: context.to_string(), source }
+}
+
+fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: usize) -> CliResult<MeshBench> {
+    // Load (once; timed for context).
+    let t = Instant::now();
+    let stage = Stage::open(file)?;
+    let mesh = stage
+        .deformed_meshes()?
+        .into_iter()
+        .next()
+        .ok_or_else(|| CliError::Input(format!("{}: no mesh deformed by curvenets", file.display())))?;
+    let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<_, _>>()?;
+    let load_ms = ms_since(t);
+    let context = format!("{} {}", file.display(), mesh.path);
+    let points = &mesh.projection_points;
+    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, points.len()).map_err(core_err(&context))?;
+    let curvenets: Vec<Curvenet> =
+        nets.iter().map(|n| Curvenet::new(&n.splines, &n.pool).map_err(core_err(&n.path))).collect::<CliResult<_>>()?;
+
+    // Bindings.
+    let (mut analysis, mut surface, mut cutting, mut assembly, mut factor, mut other) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let mut total = Series::default();
+    let mut bound = None;
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let layouts: Vec<CurvenetLayout> = curvenets
+            .iter()
+            .zip(&nets)
+            .map(|(c, n)| {
+                CurvenetLayout::new(c, &topology, points, &SamplingOptions::default().with_density(n.sample_density))
+                    .map_err(core_err(&n.path))
+            })
+            .collect::<CliResult<_>>()?;
+        analysis.push(ms_since(t));
+        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
+        drop(bound.take());
+        let clock = Stopwatch::start();
+        let binding = Binding::new(&topology, points, &refs, &BindOptions::default()).map_err(core_err(&context))?;
+        let lap = clock.stop();
+        let tm = binding.timings();
+        surface.push(tm.surface_ms);
+        cutting.push(tm.cutting_ms);
+        assembly.push(tm.assembly_ms);
+        factor.push(tm.factor_ms);
+        other.push(lap.wall_ms - (tm.surface_ms + tm.cutting_ms + tm.assembly_ms + tm.factor_ms));
+        total.push(lap);
+        bound = Some((binding, layouts));
+    }
+    let (binding, layouts) = bound.expect("repeats >= 1");
+    let stats = binding.stats();
+    let knots: usize = layouts.iter().map(|l| l.sampling().n_knots()).sum();
+
+    // Poses.
+    let pools: Vec<Vec<Vec<[f64; 3]>>> = (0..frames).map(|i| pose(&nets, i, frames)).collect();
+    let inputs: Vec<Vec<Option<&[[f64; 3]]>>> =
+        pools.iter().map(|frame| frame.iter().map(|p| Some(p.as_slice())).collect()).collect();
+    let diagonal = curvenet_core::mesh::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
+
+    // Frames, one after another with one workspace. Right after each timed
+    // frame (so that all see the same machine load) the curvenet part of its
+    // pose, the two triangular solves on random right-hand sides and the
+    // copy reference are timed too.
+    let ctx: &str = &context;
+    let frame_err = |i: usize| move |source| CliError::Core { context: format!("{ctx}, bench frame {i}"), source };
+    let mut ws = binding.workspace();
+    let mut out = vec![[0.0; 3]; binding.n_vertices()];
+    binding.deform(&FrameInput { posed: &inputs[0], rest: None }, &mut ws, &mut out, None).map_err(frame_err(0))?;
+    let neutral_max_error = max_distance(&out, points) / diagonal;
+    let mut eval = CurvenetEval::new(&layouts);
+    let mut tri9 = TriSolve::<9>::new(binding.n_unknowns(), 9);
+    let mut tri3 = TriSolve::<3>::new(binding.n_unknowns(), 3);
+    let mut reference = CopyReference::new(stats.factor_nonzeros);
+    eval.time(&layouts, &pools[0]).map_err(frame_err(0))?; // warm-ups
+    tri9.time(&binding);
+    tri3.time(&binding);
+    reference.time();
+    let (mut deform_t, mut eval_t, mut tri9_t, mut tri3_t, mut reference_t) =
+        (Series::default(), Series::default(), Series::default(), Series::default(), Series::default());
+    let mut max_displacement = 0.0f64;
+    for (i, (input, pose)) in inputs.iter().zip(&pools).enumerate() {
+        let clock = Stopwatch::start();
+        binding.deform(&FrameInput { posed: input, rest: None }, &mut ws, &mut out, None).map_err(frame_err(i))?;
+        deform_t.push(clock.stop());
+        eval_t.push(eval.time(&layouts, pose).map_err(frame_err(i))?);
+        tri9_t.push(tri9.time(&binding));
+        tri3_t.push(tri3.time(&binding));
+        reference_t.push(reference.time());
+        max_displacement = max_displacement.max(max_distance(&out, points) / diagonal);
+    }
+
+    // Throughput across frames.
+    let jobs = frames.max(8 * threads);
+    let serial = median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, 1)).collect::<CliResult<_>>()?);
+    let parallel =
+        median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, threads)).collect::<CliResult<_>>()?);
+
+    let solve_ms = deform_t.wall();
+    let binding_ms = total.wall();
+    let (tri9_ms, tri3_ms, eval_ms, reference_ms) = (tri9_t.wall(), tri3_t.wall(), eval_t.wall(), reference_t.wall());
+    let solve_cpu = deform_t.cpu();
+    let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
+    let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);
+    let targets = targets_for(name).map(|(s, st, b)| Targets {
+        solve_ms: s,
+        solve_stretch_ms: st,
+        binding_ms: b,
+        solve_met: solve_ms <= s,
+        solve_stretch_met: solve_ms <= st,
+        binding_met: binding_ms <= b,
+    });
+    Ok(MeshBench {
+        mesh: name.to_string(),
+        file: file.display().to_string(),
+        faces: stats.mesh_faces,
+        vertices: stats.mesh_vertices,
+        knots,
+        samples: stats.samples,
+        cutting_ms: median(cutting),
+        factor_ms: median(factor),
+        solve_ms,
+        cpu_clock: solve_cpu.is_some(),
+        control_points: nets.iter().map(|n| n.pool.len()).sum(),
+        splines: nets.iter().map(|n| n.splines.len()).sum(),
+        segments: stats.segments,
+        cut_vertices: stats.cut_vertices,
+        cut_faces: stats.cut_faces,
+        unknowns: stats.unknowns,
+        constraints: stats.constraints,
+        factor_nonzeros: stats.factor_nonzeros,
+        repeats,
+        load_ms,
+        analysis_ms: median(analysis),
+        surface_ms: median(surface),
+        assembly_ms: median(assembly),
+        binding_other_ms: median(other),
+        binding_ms,
+        binding_cpu_ms: total.cpu(),
+        frames,
+        max_angle_deg: MAX_ANGLE_DEG,
+        solve_min_ms: deform_t.wall_min(),
+        solve_max_ms: deform_t.wall_max(),
+        tri9_ms,
+        tri3_ms,
+        tri_share: ratio(tri9_ms + tri3_ms, solve_ms),
+        curvenet_eval_ms: eval_ms,
+        rest_of_frame_ms: solve_ms - tri9_ms - tri3_ms - eval_ms,
+        reference_bytes: stats.factor_nonzeros * 8,
+        reference_ms,
+        solve_over_reference: ratio(solve_ms, reference_ms),
+        tri_over_reference: ratio(tri9_ms + tri3_ms, reference_ms),
+        solve_cpu_ms: solve_cpu,
+        tri9_cpu_ms: tri9_t.cpu(),
+        tri3_cpu_ms: tri3_t.cpu(),
+        tri_share_cpu: tri_cpu.zip(solve_cpu).map(|(t, s)| ratio(t, s)),
+        curvenet_eval_cpu_ms: eval_t.cpu(),
+        rest_of_frame_cpu_ms: rest_cpu,
+        reference_cpu_ms: reference_t.cpu(),
+        solve_over_reference_cpu: solve_cpu.zip(reference_t.cpu()).map(|(s, r)| ratio(s, r)),
+        threads,
+        serial_frames_per_s: serial,
+        parallel_frames_per_s: parallel,
+        parallel_speedup: ratio(parallel, serial),
+        neutral_max_error,
+        max_displacement,
+        warnings: binding.warnings().iter().map(|w| w.to_string()).collect(),
+        targets,
+    })
+}
+
+/// The pools of frame `i` of `n`: control points beyond the plane curl
+/// about the x axis towards +z (see the module docs). Frame 0 is neutral.
+fn pose(nets: &[CurvenetData], i: usize, n: usize) -> Vec<Vec<[f64; 3]>> {
+    let (lo, hi) = nets
+        .iter()
+        .flat_map(|c| c.pool.iter())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    let count = nets.iter().map(|c| c.pool.len()).sum::<usize>().max(1) as f64;
+    let zc = nets.iter().flat_map(|c| c.pool.iter()).map(|p| p[2]).sum::<f64>() / count;
+    let extent = (hi - lo).max(f64::MIN_POSITIVE);
+    let y0 = lo + PLANE * extent;
+    let band = BAND * extent;
+    let angle = MAX_ANGLE_DEG.to_radians() * 0.5 * (1.0 - (std::f64::consts::TAU * i as f64 / n as f64).cos());
+    nets.iter()
+        .map(|c| {
+            c.pool
+                .iter()
+                .map(|p| {
+                    let s = ((p[1] - (y0 - 0.5 * band)) / band).clamp(0.0, 1.0);
+                    let a = angle * s * s * (3.0 - 2.0 * s);
+                    if a == 0.0 {
+                        return *p;
+                    }
+                    let (sin, cos) = a.sin_cos();
+                    let (y, z) = (p[1] - y0, p[2] - zc);
+                    [p[0], y0 + y * cos - z * sin, zc + y * sin + z * cos]
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// `Binding::solve_in_place::<K>` on fixed random right-hand sides.
+struct TriSolve<const K: usize> {
+    src: Vec<[f64; K]>,
+    rhs: Vec<[f64; K]>,
+    work: Vec<[f64; K]>,
+}
+
+impl<const K: usize> TriSolve<K> {
+    fn new(n: usize, seed: u64) -> Self {
+        let mut rng = 0x9E37_79B9_7F4A_7C15u64 ^ seed;
+        let src: Vec<[f64; K]> = (0..n).map(|_| std::array::from_fn(|_| uniform(&mut rng))).collect();
+        Self { rhs: src.clone(), work: vec![[0.0; K]; n], src }
+    }
+
+    /// One solve (the right-hand side is restored outside the clock).
+    fn time(&mut self, binding: &Binding) -> Lap {
+        self.rhs.copy_from_slice(&self.src);
+        let clock = Stopwatch::start();
+        binding.solve_in_place(black_box(&mut self.rhs), &mut self.work);
+        black_box(&self.rhs);
+        clock.stop()
+    }
+}
+
+/// Copying `len` f64 there and back (two passes): the memory-bandwidth reference.
+struct CopyReference {
+    a: Vec<f64>,
+    b: Vec<f64>,
+}
+
+impl CopyReference {
+    fn new(len: usize) -> Self {
+        let len = len.max(1);
+        let a: Vec<f64> = (0..len).map(|i| i as f64 * 0.5 + 1.0).collect();
+        let b = a.clone(); // both touched
+        Self { a, b }
+    }
+
+    fn time(&mut self) -> Lap {
+        let clock = Stopwatch::start();
+        black_box(&mut self.b).copy_from_slice(black_box(&self.a));
+        black_box(&mut self.a).copy_from_slice(black_box(&self.b));
+        black_box((&self.a, &self.b));
+        clock.stop()
+    }
+}
+
+/// The curvenet part of a frame, as `Binding::deform` runs it: posed
+/// samples, scaled frames, per-side deformation gradients, per-slot gradients.
+struct CurvenetEval {
+    samples: Vec<Vec<[f64; 3]>>,
+    frames: Vec<Vec<[ScaledFrame; 2]>>,
+    gradients: Vec<Vec<[Mat3; 2]>>,
+    slots: Vec<Vec<Mat3>>,
+}
+
+impl CurvenetEval {
+    fn new(layouts: &[CurvenetLayout]) -> Self {
+        Self {
+            samples: layouts.iter().map(|l| vec![[0.0; 3]; l.n_samples()]).collect(),
+            frames: layouts.iter().map(|l| vec![[ScaledFrame::default(); 2]; l.n_segments()]).collect(),
+            gradients: layouts.iter().map(|l| vec![[[[0.0; 3]; 3]; 2]; l.n_segments()]).collect(),
+            slots: layouts.iter().map(|l| vec![[[0.0; 3]; 3]; l.constraints().len()]).collect(),
+        }
+    }
+
+    fn time(&mut self, layouts: &[CurvenetLayout], pools: &[Vec<[f64; 3]>]) -> curvenet_core::Result<Lap> {
+        let clock = Stopwatch::start();
+        for (k, layout) in layouts.iter().enumerate() {
+            layout.sampling().samples_into(&pools[k], &mut self.samples[k])?;
+            scaled_frames_into(layout, &self.samples[k], &mut self.frames[k])?;
+            deformation_gradients_into(layout, layout.neutral_frames(), &self.frames[k], &mut self.gradients[k])?;
+            constraint_gradients_into(layout.constraints(), &self.gradients[k], &mut self.slots[k])?;
+        }
+        black_box(&self.slots);
+        Ok(clock.stop())
+    }
+}
+
+/// Frames per second deforming `jobs` frames (cycling over `inputs`) on a
+/// rayon pool of `threads` threads, one frame per task, one workspace per
+/// thread (allocated before the clock starts).
+fn throughput(binding: &Binding, inputs: &[Vec<Option<&[[f64; 3]]>>], jobs: usize, threads: usize) -> CliResult<f64> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CliError::Input(format!("cannot start {threads} bench threads: {e}")))?;
+    let buffers: Vec<Mutex<(Workspace, Vec<[f64; 3]>)>> =
+        (0..threads).map(|_| Mutex::new((binding.workspace(), vec![[0.0; 3]; binding.n_vertices()]))).collect();
+    let t = Instant::now();
+    pool.install(|| {
+        (0..jobs).into_par_iter().with_max_len(1).try_for_each(|k| {
+            let slot = rayon::current_thread_index().unwrap_or(0);
+            let mut guard = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
+            let (ws, out) = &mut *guard;
+            binding.deform(&FrameInput { posed: &inputs[k % inputs.len()], rest: None }, ws, out, None)
+        })
+    })
+    .map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;
+    Ok(jobs as f64 / t.elapsed().as_secs_f64())
+}
+
+/// One measurement: wall time and, where available, the calling thread's
+/// CPU time (which leaves out the time the thread was preempted: the
+/// machine this runs on is often shared).
+#[derive(Clone, Copy)]
+struct Lap {
+    wall_ms: f64,
+    cpu_ms: Option<f64>,
+}
+
+#[derive(Clone, Copy)]
+struct Stopwatch {
+    wall: Instant,
+    cpu: Option<Duration>,
+}
+
+impl Stopwatch {
+    fn start() -> Self {
+        let cpu = thread_cpu_time();
+        Self { wall: Instant::now(), cpu }
+    }
+
+    fn stop(self) -> Lap {
+        let wall_ms = ms_since(self.wall);
+        let cpu_ms = self.cpu.zip(thread_cpu_time()).map(|(a, b)| b.saturating_sub(a).as_secs_f64() * 1e3);
+        Lap { wall_ms, cpu_ms }
+    }
+}
+
+/// Repeated measurements of one thing.
+#[derive(Default)]
+struct Series {
+    wall: Vec<f64>,
+    cpu: Vec<Option<f64>>,
+}
+
+impl Series {
+    fn push(&mut self, lap: Lap) {
+        self.wall.push(lap.wall_ms);
+        self.cpu.push(lap.cpu_ms);
+    }
+    fn wall(&self) -> f64 {
+        median(self.wall.clone())
+    }
+    fn wall_min(&self) -> f64 {
+        self.wall.iter().copied().fold(f64::INFINITY, f64::min)
+    }
+    fn wall_max(&self) -> f64 {
+        self.wall.iter().copied().fold(0.0, f64::max)
+    }
+    /// Median CPU time, if every measurement has one.
+    fn cpu(&self) -> Option<f64> {
+        let v: Option<Vec<f64>> = self.cpu.iter().copied().collect();
+        v.filter(|v| !v.is_empty()).map(median)
+    }
+}
+
+/// CPU time consumed by the calling thread (`CLOCK_THREAD_CPUTIME_ID`).
+/// std has no thread CPU clock; libc's `clock_gettime` is linked into
+/// every Linux Rust program, so it is declared here rather than adding a
+/// dependency.
+#[cfg(all(target_os = "linux", target_pointer_width = "64"))]
+fn thread_cpu_time() -> Option<Duration> {
+    #[repr(C)]
+    struct Timespec {
+        tv_sec: i64,
+        tv_nsec: i64,
+    }
+    unsafe extern "C" {
+        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+    }
+    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+    let mut ts = Timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes one `struct timespec` (two 64-bit fields
+    // on 64-bit Linux) through the pointer, which points to one.
+    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    (rc == 0 && ts.tv_sec >= 0 && (0..1_000_000_000).contains(&ts.tv_nsec))
+        .then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
+}
+
+#[cfg(not(all(target_os = "linux", target_pointer_width = "64")))]
+fn thread_cpu_time() -> Option<Duration> {
+    None
+}
+
+fn uniform(state: &mut u64) -> f64 {
+    // xorshift64*: deterministic right-hand sides in [-1, 1).
+    *state ^= *state >> 12;
+    *state ^= *state << 25;
+    *state ^= *state >> 27;
+    let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
+    (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+        .fold(0.0, f64::max)
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 { a / b } else { 0.0 }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+}
+
+fn text_report(r: &Report) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let w = r.meshes.iter().map(|m| m.mesh.len()).max().unwrap_or(4).max(10);
+    let _ = writeln!(
+        s,
+        "curvenet bench: medians of {} bindings and {} frames per mesh (frame 0 neutral, then a finger curl up to {}°); {} thread(s) for throughput",
+        r.repeats, r.frames, MAX_ANGLE_DEG, r.threads
+    );
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Table 1 (paper columns)");
+    let _ = writeln!(
+        s,
+        "{:<w$} {:>7} {:>8} {:>6} {:>8} {:>11} {:>10} {:>15}",
+        "mesh", "faces", "vertices", "knots", "samples", "cutting ms", "factor ms", "solve ms/frame"
+    );
+    for m in &r.meshes {
+        let _ = writeln!(
+            s,
+            "{:<w$} {:>7} {:>8} {:>6} {:>8} {:>11.2} {:>10.2} {:>15.3}",
+            m.mesh, m.faces, m.vertices, m.knots, m.samples, m.cutting_ms, m.factor_ms, m.solve_ms
+        );
+    }
+    let _ = writeln!(
+        s,
+        "  paper (Xeon E5-2699, CHOLMOD; its Factor = assembly + factorisation; 448 knots): Hand Tri 2896/1459 verts: 33.4 / 11.8 / 1.4 ms; Hand Subd 10447 verts: 51.1 / 46.2 / 6.3 ms; Hand Dense 93991 verts: 153.7 / 408.2 / 35.4 ms"
+    );
+    let _ = writeln!(s);
+    let _ = writeln!(
+        s,
+        "Binding (ms, medians; stages as Binding::timings() reports them; total = wall time of Binding::new, total cpu = its thread CPU time; other = after the factorisation)"
+    );
+    let _ = writeln!(
+        s,
+        "{:<w$} {:>8} {:>8} {:>9} {:>8} {:>7} {:>8} {:>10} {:>14} {:>9}",
+        "mesh", "surface", "cutting", "assembly", "factor", "other", "total", "total cpu", "| analysis §3", "load USD"
+    );
+    for m in &r.meshes {
+        let cpu = m.binding_cpu_ms.map_or_else(|| "-".to_string(), |c| format!("{c:.2}"));
+        let _ = writeln!(
+            s,
+            "{:<w$} {:>8.2} {:>8.2} {:>9.2} {:>8.2} {:>7.2} {:>8.2} {:>10} {:>14.2} {:>9.1}",
+            m.mesh, m.surface_ms, m.cutting_ms, m.assembly_ms, m.factor_ms, m.binding_other_ms, m.binding_ms, cpu, m.analysis_ms, m.load_ms
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Sizes");
+    let _ = writeln!(
+        s,
+        "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9}",
+        "mesh", "splines", "segments", "cut faces", "cut verts", "unknowns", "constraints", "L nnz"
+    );
+    for m in &r.meshes {
+        let _ = writeln!(
+            s,
+            "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9}",
+            m.mesh, m.splines, m.segments, m.cut_faces, m.cut_vertices, m.unknowns, m.constraints, m.factor_nonzeros
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(
+        s,
+        "Per frame (ms, medians; deform = Binding::deform with a reused workspace; timed right after each frame: tri9/tri3 = solve_in_place::<9>/<3>"
+    );
+    let _ = writeln!(
+        s,
+        "           on random right-hand sides, curve = the curvenet part (samples, frames, gradients), ref = copying factor-nnz × 8 bytes there and back;"
+    );
+    let _ = writeln!(
+        s,
+        "           rest = deform − tri9 − tri3 − curve: constraint rows, B products, per-face gradients, output; cpu = thread CPU time, without preemption)"
+    );
+    let _ = writeln!(
+        s,
+        "{:<w$} {:<5} {:>8} {:>8} {:>8} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>10} {:>8}",
+        "mesh", "clock", "deform", "min", "max", "tri9", "tri3", "tri share", "curve", "rest", "ref", "deform/ref", "tri/ref"
+    );
+    for m in &r.meshes {
+        let _ = writeln!(
+            s,
+            "{:<w$} {:<5} {:>8.3} {:>8.3} {:>8.3} {:>7.3} {:>7.3} {:>8.0}% {:>7.3} {:>7.3} {:>7.3} {:>10.1} {:>8.1}",
+            m.mesh,
+            "wall",
+            m.solve_ms,
+            m.solve_min_ms,
+            m.solve_max_ms,
+            m.tri9_ms,
+            m.tri3_ms,
+            100.0 * m.tri_share,
+            m.curvenet_eval_ms,
+            m.rest_of_frame_ms,
+            m.reference_ms,
+            m.solve_over_reference,
+            m.tri_over_reference
+        );
+        if let (Some(d), Some(t9), Some(t3), Some(share), Some(curve), Some(rest), Some(reference)) = (
+            m.solve_cpu_ms,
+            m.tri9_cpu_ms,
+            m.tri3_cpu_ms,
+            m.tri_share_cpu,
+            m.curvenet_eval_cpu_ms,
+            m.rest_of_frame_cpu_ms,
+            m.reference_cpu_ms,
+        ) {
+            let _ = writeln!(
+                s,
+                "{:<w$} {:<5} {:>8.3} {:>8} {:>8} {:>7.3} {:>7.3} {:>8.0}% {:>7.3} {:>7.3} {:>7.3} {:>10.1} {:>8.1}",
+                "",
+                "cpu",
+                d,
+                "",
+                "",
+                t9,
+                t3,
+                100.0 * share,
+                curve,
+                rest,
+                reference,
+                ratio(d, reference),
+                ratio(t9 + t3, reference)
+            );
+        }
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Throughput across frames (frames/s; one workspace per thread)");
+    let _ = writeln!(s, "{:<w$} {:>10} {:>14} {:>8}", "mesh", "1 thread", format!("{} threads", r.threads), "speedup");
+    for m in &r.meshes {
+        let _ = writeln!(
+            s,
+            "{:<w$} {:>10.1} {:>14.1} {:>7.2}×",
+            m.mesh, m.serial_frames_per_s, m.parallel_frames_per_s, m.parallel_speedup
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(s, "Frames (relative to the bounding-box diagonal)");
+    for m in &r.meshes {
+        let _ = writeln!(
+            s,
+            "{:<w$} neutral pose reproduces the mesh to {:.1e}; largest displacement {:.3}",
+            m.mesh, m.neutral_max_error, m.max_displacement
+        );
+        for warning in &m.warnings {
+            let _ = writeln!(s, "{:<w$} warning: {warning}", "");
+        }
+    }
+    let with_targets: Vec<&MeshBench> = r.meshes.iter().filter(|m| m.targets.is_some()).collect();
+    if !with_targets.is_empty() {
+        let _ = writeln!(s);
+        let _ = writeln!(s, "Targets of the issue (informative; the bench never fails on them)");
+        let met = |b: bool| if b { "met" } else { "NOT met" };
+        for m in with_targets {
+            let t = m.targets.expect("filtered");
+            let _ = writeln!(
+                s,
+                "{:<w$} solve {:.2} ms ≤ {} ms: {} (stretch ≤ {} ms: {}); binding {:.1} ms ≤ {} ms: {}",
+                m.mesh,
+                m.solve_ms,
+                t.solve_ms,
+                met(t.solve_met),
+                t.solve_stretch_ms,
+                met(t.solve_stretch_met),
+                m.binding_ms,
+                t.binding_ms,
+                met(t.binding_met)
+            );
+            if let (Some(sc), Some(bc)) = (m.solve_cpu_ms, m.binding_cpu_ms) {
+                let _ = writeln!(
+                    s,
+                    "{:<w$} (judged on wall-clock medians; in thread CPU time: solve {sc:.2} ms, binding {bc:.1} ms)",
+                    ""
+                );
+            }
+        }
+    }
+    s
+}

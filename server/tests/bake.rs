@@ -1,0 +1,322 @@
+//! `curvenet bake` as a farm runs it: the binary on the shipped shot, its
+//! output read back (composed over the input) and compared with an
+//! in-process solve through the same binding code path.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_schema::usd::Stage;
+use curvenet_schema::{CurvenetData, MeshData};
+
+const SHOT: &str = "fixtures/shots/hand_wave/shot.usda";
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn curvenet(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_curvenet")).args(args).current_dir(repo()).output().expect("runs")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A fresh, empty directory for one test.
+fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("curvenet-bake-test-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn bake(input: &str, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["bake", input, "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    curvenet(&args)
+}
+
+fn dir_names(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// A root layer composing `layers` (strongest first), written beside them.
+fn compose(dir: &Path, name: &str, layers: &[&Path]) -> Stage {
+    let subs: Vec<String> = layers.iter().map(|p| format!("@{}@", p.display())).collect();
+    let root = dir.join(name);
+    std::fs::write(&root, format!("#usda 1.0\n(\n    subLayers = [{}]\n)\n", subs.join(", "))).unwrap();
+    Stage::open(&root).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The shot's mesh bound as `curvenet bake` binds it.
+struct Reference {
+    stage: Stage,
+    mesh: MeshData,
+    nets: Vec<CurvenetData>,
+    binding: Binding,
+}
+
+impl Reference {
+    fn new(input: &Path) -> Self {
+        let stage = Stage::open(input).unwrap();
+        let mesh = stage.deformed_meshes().unwrap().remove(0);
+        let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
+        let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
+        let layouts: Vec<CurvenetLayout> = nets
+            .iter()
+            .map(|n| {
+                let c = Curvenet::new(&n.splines, &n.pool).unwrap();
+                let options = SamplingOptions::default().with_density(n.sample_density);
+                CurvenetLayout::new(&c, &topology, &mesh.projection_points, &options).unwrap()
+            })
+            .collect();
+        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
+        let binding = Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default()).unwrap();
+        Self { stage, mesh, nets, binding }
+    }
+
+    /// The frame as the core deforms it: posed pools, the rest pose when the
+    /// mesh animates it, blend shapes after the deformation.
+    fn deform(&self, t: f64) -> Vec<[f64; 3]> {
+        let pools: Vec<Option<Vec<[f64; 3]>>> = self.nets.iter().map(|n| self.stage.posed_pool(n, Some(t)).unwrap()).collect();
+        let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| p.as_deref()).collect();
+        let rest = (!self.mesh.rest_sample_times.is_empty()).then(|| self.stage.rest_points(&self.mesh, Some(t)).unwrap());
+        let n = self.binding.n_vertices();
+        let mut out = vec![[0.0; 3]; n];
+        let mut gradients = vec![[0.0; 9]; n];
+        let mut ws = self.binding.workspace();
+        let frame = FrameInput { posed: &posed, rest: rest.as_deref() };
+        self.binding.deform(&frame, &mut ws, &mut out, Some(&mut gradients)).unwrap();
+        let shapes = self
+            .mesh
+            .blend_shapes
+            .iter()
+            .map(|s| {
+                let ib = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
+                BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib).unwrap()
+            })
+            .collect();
+        let weights = self.stage.blend_shape_weights(&self.mesh, Some(t)).unwrap();
+        BlendShapes::new(n, shapes).add_deformed(&weights, &gradients, &mut out).unwrap();
+        out
+    }
+}
+
+fn max_diff(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).flat_map(|(p, q)| (0..3).map(move |i| (p[i] - q[i]).abs())).fold(0.0, f64::max)
+}
+
+#[test]
+fn bakes_the_shot_to_usda_and_usdc_matching_an_in_process_solve() {
+    let dir = temp_dir("shot");
+    let input = repo().join(SHOT);
+    let usda = dir.join("bake.usda");
+    let usdc = dir.join("bake.usdc");
+    for out in [&usda, &usdc] {
+        let run = bake(SHOT, out, &["--frames", "1-24"]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        // Not a terminal: no progress, one summary line naming the output.
+        let err = stderr(&run);
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains("1 mesh") && err.contains("24 frames") && err.contains(out.to_str().unwrap()), "{err}");
+    }
+    assert_eq!(dir_names(&dir), ["bake.usda", "bake.usdc"], "temporary files left behind");
+
+    // Idempotent: the same bake writes the same bytes.
+    for out in [&usda, &usdc] {
+        let first = std::fs::read(out).unwrap();
+        let run = bake(SHOT, out, &["--frames", "1-24", "--quiet", "--threads", "3"]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        assert!(run.stderr.is_empty(), "--quiet printed {}", stderr(&run));
+        assert_eq!(first, std::fs::read(out).unwrap(), "{}: a second bake wrote different bytes", out.display());
+    }
+
+    // The text layer: over opinions and points only.
+    let text = std::fs::read_to_string(&usda).unwrap();
+    assert!(text.contains("over \"Hand\"") && text.contains("over \"Mesh\""), "{}", &text[..text.len().min(2000)]);
+    // (The layer's doc string, in its header, may name anything.)
+    let body = text.split_once("\n)\n").expect("a layer header").1;
+    for absent in ["def ", "faceVertex", "curvenet", "primvars", "extent", "skel"] {
+        assert!(!body.contains(absent), "the bake layer holds {absent:?}");
+    }
+    assert_eq!(body.matches("over ").count(), 2, "{}", &body[..body.len().min(500)]);
+    assert!(text.contains("startTimeCode = 1") && text.contains("endTimeCode = 24"));
+
+    // Composed over the input, both files give the in-process solve's points.
+    let reference = Reference::new(&input);
+    let composed_a = compose(&dir, "over_a.usda", &[&usda, &input]);
+    let composed_c = compose(&dir, "over_c.usda", &[&usdc, &input]);
+    let mesh_a = composed_a.deformed_meshes().unwrap().remove(0);
+    let mesh_c = composed_c.deformed_meshes().unwrap().remove(0);
+    assert_eq!(mesh_a.rest_sample_times, (1..=24).map(f64::from).collect::<Vec<_>>());
+    // Composition changes nothing but the points.
+    assert_eq!(mesh_a.face_vertex_indices, reference.mesh.face_vertex_indices);
+    assert_eq!(mesh_a.curvenets, reference.mesh.curvenets);
+    assert_eq!(composed_a.curvenet("/Hand/Curvenet").unwrap(), reference.nets[0]);
+    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&reference.mesh.projection_points);
+    let mut moved = 0.0f64;
+    for t in [1.0, 7.0, 13.0, 24.0] {
+        let want = reference.deform(t);
+        let a = composed_a.rest_points(&mesh_a, Some(t)).unwrap();
+        let c = composed_c.rest_points(&mesh_c, Some(t)).unwrap();
+        assert_eq!(a, c, "frame {t}: .usda and .usdc disagree");
+        let d = max_diff(&a, &want);
+        assert!(d <= 1e-6, "frame {t}: baked points differ from the in-process solve by {d:e}");
+        moved = moved.max(max_diff(&a, &reference.mesh.projection_points));
+        if t == 1.0 {
+            let d = max_diff(&a, &reference.mesh.projection_points);
+            assert!(d <= 1e-5 * diagonal, "frame 1 (neutral) moved the mesh by {d:e}");
+        }
+    }
+    assert!(moved > 0.01 * diagonal, "the curl did not move the mesh ({moved:e})");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_frame_range_bakes_exactly_those_frames() {
+    let dir = temp_dir("range");
+    let out = dir.join("part.usda");
+    let run = bake(SHOT, &out, &["--frames", "5-7"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("startTimeCode = 5") && text.contains("endTimeCode = 7"));
+    let composed = compose(&dir, "root.usda", &[&out, &repo().join(SHOT)]);
+    let mesh = composed.deformed_meshes().unwrap().remove(0);
+    assert_eq!(mesh.rest_sample_times, [5.0, 6.0, 7.0]);
+    // A single frame.
+    let run = bake(SHOT, &out, &["--frames", "9"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let composed = compose(&dir, "root.usda", &[&out, &repo().join(SHOT)]);
+    assert_eq!(composed.deformed_meshes().unwrap()[0].rest_sample_times, [9.0]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_commands_exit_2_and_a_missing_output_directory_exits_75() {
+    let dir = temp_dir("bad");
+    let run = bake(SHOT, &dir.join("x.usda"), &["--frames", "7-5"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("7-5"), "{}", stderr(&run));
+    let run = bake(SHOT, &dir.join("x.usda"), &["--frames", "one-two"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let run = bake(SHOT, &dir.join("x.obj"), &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains(".usda or .usdc"), "{}", stderr(&run));
+    let run = bake("fixtures/nope.usda", &dir.join("x.usda"), &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("nope.usda"), "{}", stderr(&run));
+    // A stage without a frame range or time samples needs --frames.
+    let run = bake("fixtures/hand/hand_1k4.usda", &dir.join("x.usda"), &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("--frames"), "{}", stderr(&run));
+    // Documented in --help: a missing output directory is an I/O failure (75), found before any work.
+    let missing = dir.join("no/such/dir/x.usda");
+    let run = bake(SHOT, &missing, &[]);
+    assert_eq!(run.status.code(), Some(75), "{}", stderr(&run));
+    assert!(stderr(&run).contains("no/such/dir"), "{}", stderr(&run));
+    assert_eq!(dir_names(&dir), Vec::<String>::new());
+    let help = String::from_utf8(curvenet(&["bake", "--help"]).stdout).unwrap();
+    assert!(help.contains("75") && help.contains("does not exist"), "{help}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_nothing() {
+    let dir = temp_dir("nan");
+    let grid = repo().join("fixtures/grid/grid.usda");
+    let stage = Stage::open(&grid).unwrap();
+    let net = stage.curvenet("/Grid/Curvenet").unwrap();
+    // Frames 1-4 as in the grid (samples of a stronger layer replace all of
+    // the weaker layer's), with one NaN at frame 3.
+    let mut samples = Vec::new();
+    for t in 1..=4 {
+        let mut pool = stage.posed_pool(&net, Some(t as f64)).unwrap().unwrap();
+        if t == 3 {
+            pool[17][1] = f64::NAN;
+        }
+        let points: Vec<String> = pool
+            .iter()
+            .map(|p| {
+                let c: Vec<String> = p.iter().map(|&x| if x.is_nan() { "nan".into() } else { format!("{:?}", x as f32) }).collect();
+                format!("({})", c.join(", "))
+            })
+            .collect();
+        samples.push(format!("            {t}: [{}],", points.join(", ")));
+    }
+    let over = format!(
+        "#usda 1.0\n\nover \"Grid\"\n{{\n    over \"Curvenet\"\n    {{\n        point3f[] primvars:curvenet:cv.timeSamples = {{\n{}\n        }}\n    }}\n}}\n",
+        samples.join("\n")
+    );
+    std::fs::write(dir.join("nan.usda"), over).unwrap();
+    let shot = dir.join("shot.usda");
+    std::fs::write(
+        &shot,
+        format!("#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 4\n    subLayers = [@./nan.usda@, @{}@]\n)\n", grid.display()),
+    )
+    .unwrap();
+    let out_dir = dir.join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    for name in ["bake.usda", "bake.usdc"] {
+        let run = bake(shot.to_str().unwrap(), &out_dir.join(name), &[]);
+        assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+        let err = stderr(&run);
+        assert!(err.contains("frame 3, /Grid/Curvenet:") && err.contains("control point 17"), "{err}");
+        assert_eq!(dir_names(&out_dir), Vec::<String>::new(), "a failed bake left files");
+    }
+    // An existing output is left as it was.
+    let keep = out_dir.join("keep.usda");
+    std::fs::write(&keep, "previous").unwrap();
+    let run = bake(shot.to_str().unwrap(), &keep, &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert_eq!(std::fs::read_to_string(&keep).unwrap(), "previous");
+    assert_eq!(dir_names(&out_dir), ["keep.usda"]);
+    std::fs::remove_file(&keep).unwrap();
+    // Frames before the bad one still bake.
+    let run = bake(shot.to_str().unwrap(), &out_dir.join("ok.usda"), &["--frames", "1-2"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_output_may_not_replace_the_input() {
+    let run = bake(SHOT, &repo().join(SHOT), &["--frames", "1"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("replace the input"), "{}", stderr(&run));
+}
+
+#[test]
+fn a_skinned_rest_pose_with_a_tracking_curvenet_bakes_to_the_rest_pose() {
+    // hand_skinned: the rest pose is linear blend skinning (index finger bent
+    // 115 degrees, wrist turned 15), the curvenet has no time samples, so its
+    // knots track the rest pose and the output is the rest pose (issue #6).
+    let dir = temp_dir("rest");
+    let out = dir.join("bake.usdc");
+    let shot = repo().join("fixtures/shots/hand_skinned/shot.usda");
+    let run = bake(shot.to_str().unwrap(), &out, &[]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let composed = compose(&dir, "root.usda", &[&out, &shot]);
+    let mesh = composed.deformed_meshes().unwrap().remove(0);
+    assert_eq!(mesh.rest_sample_times, (1..=12).map(f64::from).collect::<Vec<_>>());
+    let input = Stage::open(&shot).unwrap();
+    let input_mesh = input.deformed_meshes().unwrap().remove(0);
+    let reference = Reference::new(&shot);
+    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&input_mesh.projection_points);
+    let mut largest_motion = 0.0f64;
+    for t in [1.0, 6.0, 12.0] {
+        let rest = input.rest_points(&input_mesh, Some(t)).unwrap();
+        let baked = composed.rest_points(&mesh, Some(t)).unwrap();
+        // f32 output: 1e-6 of the diagonal is a few float32 ulps.
+        let d = max_diff(&baked, &rest);
+        assert!(d <= 1e-6 * diagonal, "frame {t}: the output is {:e} of the diagonal away from the rest pose", d / diagonal);
+        let d = max_diff(&baked, &reference.deform(t));
+        assert!(d <= 1e-6 * diagonal, "frame {t}: the bake differs from the in-process solve by {d:e}");
+        largest_motion = largest_motion.max(max_diff(&rest, &input_mesh.projection_points));
+    }
+    assert!(largest_motion > 0.1 * diagonal, "the skinned rest pose hardly moves ({largest_motion:e})");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

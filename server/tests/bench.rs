@@ -1,0 +1,82 @@
+//! `curvenet bench --json` on the smallest hand: the report's shape and
+//! counts (no timing assertions: the numbers depend on the machine).
+
+use std::process::Command;
+
+fn repo() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn curvenet(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_curvenet")).args(args).current_dir(repo()).output().expect("runs")
+}
+
+fn positive_finite(m: &serde_json::Value, key: &str) -> f64 {
+    let x = m[key].as_f64().unwrap_or_else(|| panic!("`{key}` is not a number: {}", m[key]));
+    assert!(x.is_finite() && x > 0.0, "`{key}` = {x}");
+    x
+}
+
+fn count(m: &serde_json::Value, key: &str) -> u64 {
+    m[key].as_u64().unwrap_or_else(|| panic!("`{key}` is not a count: {}", m[key]))
+}
+
+#[test]
+fn bench_json_reports_the_hand_1k4_fixture() {
+    let out = curvenet(&["bench", "--json", "--meshes", "hand_1k4", "--repeats", "2", "--frames", "3"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    assert_eq!(v["repeats"], 2);
+    assert_eq!(v["frames"], 3);
+    assert!(count(&v, "threads") >= 1);
+    let meshes = v["meshes"].as_array().expect("a `meshes` array");
+    assert_eq!(meshes.len(), 1);
+    let m = &meshes[0];
+    assert_eq!(m["mesh"], "hand_1k4");
+    assert_eq!(count(m, "vertices"), 1400);
+    assert_eq!(count(m, "faces"), 2796);
+    assert_eq!(count(m, "repeats"), 2);
+    assert_eq!(count(m, "frames"), 3);
+    // The shared hand curvenet: 75 knots (fixtures/README.md), more samples than knots.
+    let knots = count(m, "knots");
+    assert!(knots > 0 && knots <= count(m, "control_points"), "knots {knots}");
+    assert!(count(m, "samples") >= knots);
+    let unknowns = count(m, "unknowns");
+    assert!(unknowns > 0 && unknowns <= 1400, "unknowns {unknowns}");
+    assert!(count(m, "constraints") > 0);
+    assert!(count(m, "factor_nonzeros") >= unknowns);
+    for key in [
+        "cutting_ms",
+        "factor_ms",
+        "solve_ms",
+        "binding_ms",
+        "surface_ms",
+        "assembly_ms",
+        "analysis_ms",
+        "solve_min_ms",
+        "solve_max_ms",
+        "tri9_ms",
+        "tri3_ms",
+        "reference_ms",
+        "solve_over_reference",
+        "serial_frames_per_s",
+        "parallel_frames_per_s",
+    ] {
+        positive_finite(m, key);
+    }
+    assert!(m["solve_min_ms"].as_f64() <= m["solve_ms"].as_f64());
+    assert!(m["solve_ms"].as_f64() <= m["solve_max_ms"].as_f64());
+    // No targets are set for the 1.4k hand; the frames stay close to the mesh in the neutral pose.
+    assert!(m["targets"].is_null());
+    let neutral = m["neutral_max_error"].as_f64().unwrap();
+    assert!(neutral < 1e-6, "neutral pose error {neutral}");
+    assert!(m["max_displacement"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bench_refuses_a_missing_fixtures_directory() {
+    let out = curvenet(&["bench", "--json", "--fixtures", "no/such/dir", "--meshes", "hand_1k4"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no/such/dir") && err.contains("--fixtures"), "{err}");
+}
