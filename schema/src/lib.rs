@@ -10,5 +10,6 @@
 
 pub mod data;
 pub mod usd;
+pub mod wire;
 
 pub use data::{BlendShapeData, CurvenetData, InbetweenData, MeshData};

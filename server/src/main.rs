@@ -21,6 +21,8 @@ enum Command {
     Bake(cli::bake::Args),
     /// Measure binding and per-frame solve times on the hand fixtures (the paper's Table 1).
     Bench(cli::bench::Args),
+    /// Run the deformer HTTP service.
+    Serve(cli::serve::Args),
 }
 
 fn main() -> ExitCode {
@@ -29,6 +31,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
+        Command::Serve(args) => cli::serve::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

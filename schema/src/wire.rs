@@ -1,0 +1,354 @@
+//! The HTTP wire types of `curvenet serve`, documented here once; the
+//! service serves them as OpenAPI 3.1 at `/openapi.json`.
+//!
+//! # Conventions
+//!
+//! - JSON field names are `snake_case`. The two topology arrays also accept
+//!   their USD spellings (`faceVertexCounts`, `faceVertexIndices`).
+//! - Points are `[x, y, z]` triples in the stage's units. Requests carry
+//!   them as JSON numbers (read as `f64`) or, in the binary form, as
+//!   little-endian `f32`; responses carry `f32` (USD's `point3f`).
+//! - Indices are 0-based `u32`. Every count and index in an error message
+//!   refers to the arrays of the request (e.g. `posed[1] point 17`).
+//! - A 3×3 matrix (a per-vertex deformation gradient) is 9 numbers, row
+//!   major, acting on column vectors.
+//!
+//! # Binary frames
+//!
+//! `POST /v1/bindings/{id}/frames` (and `frames:batch`) also accept
+//! `Content-Type: application/octet-stream`:
+//!
+//! ```text
+//! u32 little-endian  header length H (bytes)
+//! H bytes            UTF-8 JSON header: a BinaryFrameHeader, or {"frames": [BinaryFrameHeader, ...]}
+//! raw data           the arrays the header lists, in its order, little-endian f32, no padding
+//! ```
+//!
+//! The response uses the same framing: a [`BinaryResponseHeader`] (or
+//! `{"frames": [...]}` for a batch) followed by `points` (`#V × 3` f32) and,
+//! when asked for, `gradients` (`#V × 9` f32) per frame. The server pads its
+//! header with spaces to a multiple of 4 bytes so the arrays are aligned.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+/// The default samples per mean mesh edge length of a curvenet
+/// (`curvenet:sampleDensity`).
+pub const DEFAULT_SAMPLE_DENSITY: f64 = 5.0;
+
+fn default_density() -> f64 {
+    DEFAULT_SAMPLE_DENSITY
+}
+
+/// `POST /v1/bindings`: a mesh, its projection pose and the curvenets that
+/// deform it (paper §4.1–4.2). Everything that changes a frame's result is
+/// hashed into the binding id (blake3, hex): posting the same content again
+/// returns the same id without recomputing.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BindingRequest {
+    /// Corners per face (USD `faceVertexCounts`), each at least 3.
+    #[serde(alias = "faceVertexCounts")]
+    pub face_vertex_counts: Vec<u32>,
+    /// Vertex indices, face after face, counter-clockwise seen from outside
+    /// (USD `faceVertexIndices`).
+    #[serde(alias = "faceVertexIndices")]
+    pub face_vertex_indices: Vec<u32>,
+    /// The projection pose, one point per vertex (`#V`): the pose the
+    /// curvenets were drawn and are bound in.
+    pub projection_points: Vec<[f64; 3]>,
+    /// The curvenets deforming the mesh, in order (frames name their posed
+    /// pools in this order). At least one.
+    pub curvenets: Vec<CurvenetSpec>,
+    /// UsdSkel blend shapes of the mesh; frames give one weight per shape.
+    #[serde(default)]
+    pub blend_shapes: Vec<BlendShapeSpec>,
+    #[serde(default)]
+    pub options: BindingOptions,
+}
+
+/// One curvenet: a pool of control points and cubic Bézier splines indexing it.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CurvenetSpec {
+    /// The neutral pose of the control-point pool (`#P` points), drawn over
+    /// the projection pose (`primvars:curvenet:cv`).
+    pub pool: Vec<[f64; 3]>,
+    /// Four pool indices per spline: endpoint, handle, handle, endpoint.
+    /// Splines sharing an endpoint index are joined there.
+    pub splines: Vec<[u32; 4]>,
+    /// Samples per mean mesh edge length (`curvenet:sampleDensity`), default 5.
+    #[serde(default = "default_density")]
+    pub sample_density: f64,
+}
+
+/// A UsdSkel blend shape: offsets at weight 1, optional sparse point
+/// indices, inbetweens at their weights.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BlendShapeSpec {
+    /// Informational (e.g. the `skel:blendShapes` token); not hashed.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Offsets of the full shape: one per vertex, or one per point index.
+    pub offsets: Vec<[f64; 3]>,
+    /// The vertex of each offset (sparse shape); absent for a dense shape.
+    #[serde(default)]
+    pub point_indices: Option<Vec<u32>>,
+    /// Inbetween shapes, laid out like `offsets`.
+    #[serde(default)]
+    pub inbetweens: Vec<InbetweenSpec>,
+}
+
+/// An inbetween shape, reached exactly at `weight` (not 0 or 1).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct InbetweenSpec {
+    pub weight: f64,
+    pub offsets: Vec<[f64; 3]>,
+}
+
+/// Binding options. Both tolerances are relative to the mesh's
+/// bounding-box diagonal.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BindingOptions {
+    /// Refuse a mesh with a connected component no curvenet touches
+    /// (otherwise its vertices pass through at the rest pose, with a warning).
+    #[serde(default)]
+    pub strict: bool,
+    /// Vertex/edge snapping tolerance of the cutter (default 1e-5, the paper's 0.001 %).
+    #[serde(default)]
+    pub snap_tolerance: Option<f64>,
+    /// Largest distance of a curvenet sample from the surface (default 0.05).
+    #[serde(default)]
+    pub max_projection_distance: Option<f64>,
+}
+
+/// The answer to `POST /v1/bindings`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BindingResponse {
+    /// The content hash (blake3, 64 hex digits) naming the binding in `/v1/bindings/{id}/...`.
+    pub binding_id: String,
+    /// blake3 of the topology alone; frames may send it back to assert
+    /// that their mesh is still the bound one.
+    pub topology_hash: String,
+    /// Whether the binding was already cached (nothing was recomputed).
+    pub cached: bool,
+    /// Mesh vertices (`#V`): the length of every frame's points.
+    pub vertices: usize,
+    /// Control points of each curvenet's pool, in order (the length of its posed pool).
+    pub control_points: Vec<usize>,
+    /// Number of blend shapes (the length of a frame's weights).
+    pub blend_shapes: usize,
+    /// The binding's estimated memory, as weighed by the cache (bytes).
+    pub size_bytes: u64,
+    pub stats: BindingStats,
+    pub timings: BindingTimings,
+    pub warnings: Vec<Warning>,
+}
+
+/// Counts describing a binding.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BindingStats {
+    pub mesh_vertices: usize,
+    pub mesh_faces: usize,
+    pub samples: usize,
+    pub segments: usize,
+    pub cut_vertices: usize,
+    pub cut_faces: usize,
+    pub cut_halfedges: usize,
+    pub cracks: usize,
+    pub islands_removed: usize,
+    pub unknowns: usize,
+    pub constraints: usize,
+    pub factor_nonzeros: usize,
+}
+
+/// Times of the binding's stages, milliseconds (of the computation that
+/// made the cached binding, also when `cached` is true).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BindingTimings {
+    /// Curvenet analysis (paper §3): sampling, intersections.
+    pub analysis_ms: f64,
+    pub surface_ms: f64,
+    pub cutting_ms: f64,
+    pub assembly_ms: f64,
+    pub factor_ms: f64,
+    /// The whole binding, wall time.
+    pub total_ms: f64,
+}
+
+/// Something the binding did that the user should know about.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct Warning {
+    /// `untouched_component`, `islands_removed` or `degenerate_cut_faces`.
+    pub code: String,
+    pub message: String,
+}
+
+/// How blend shapes combine with the curvenet deformation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BlendShapeMode {
+    /// Offsets mapped by each vertex's deformation gradient after the
+    /// deformation (paper §5; the default): sculpts move with the surface.
+    #[default]
+    After,
+    /// Offsets added to the rest pose before the deformation.
+    Before,
+}
+
+/// One frame (`POST /v1/bindings/{id}/frames`, JSON form).
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FrameRequest {
+    /// The posed control-point pool of each curvenet, in binding order, or
+    /// `null` for a curvenet that is not articulated this frame (its knots
+    /// track the rest pose). Absent: no curvenet is articulated.
+    #[serde(default)]
+    pub posed: Option<Vec<Option<Vec<[f64; 3]>>>>,
+    /// The mesh's rest pose this frame (skinning or cloth output, `#V`
+    /// points); absent: the projection pose.
+    #[serde(default)]
+    pub rest: Option<Vec<[f64; 3]>>,
+    /// One weight per blend shape of the binding; absent: all zero.
+    #[serde(default)]
+    pub blend_shape_weights: Option<Vec<f64>>,
+    #[serde(default)]
+    pub blend_shape_mode: BlendShapeMode,
+    /// Also return the per-vertex deformation gradients.
+    #[serde(default)]
+    pub gradients: bool,
+    /// The binding's `topology_hash` as the client knows it; a mismatch is
+    /// refused (`topology_changed`) instead of deforming the wrong mesh.
+    #[serde(default)]
+    pub topology_hash: Option<String>,
+}
+
+/// One deformed frame.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct FrameResponse {
+    /// Deformed points, `#V`.
+    pub points: Vec<[f32; 3]>,
+    /// Per-vertex deformation gradients (row-major 3×3), when asked for.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub gradients: Option<Vec<[f32; 9]>>,
+    /// The solve's wall time, milliseconds.
+    pub solve_ms: f64,
+}
+
+/// `POST /v1/bindings/{id}/frames:batch` (JSON form).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct FrameBatchRequest {
+    pub frames: Vec<FrameRequest>,
+}
+
+/// The frames of a batch, in request order.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct FrameBatchResponse {
+    pub frames: Vec<FrameResponse>,
+}
+
+/// `POST /v1/deform`: a binding and one frame in one request. The binding
+/// goes through the cache (same content → no recomputation).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DeformRequest {
+    pub binding: BindingRequest,
+    pub frame: FrameRequest,
+}
+
+/// The answer to `POST /v1/deform`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct DeformResponse {
+    pub binding_id: String,
+    /// Whether the binding came from the cache.
+    pub cached: bool,
+    pub frame: FrameResponse,
+}
+
+/// `POST /v1/bake`: bake a shot stage on the server's file system. Both
+/// paths must lie inside one of the server's `--bake-root` directories
+/// (after resolving `..` and symlinks); relative paths are relative to the
+/// first root.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BakeRequest {
+    /// The shot stage to read.
+    pub stage: String,
+    /// The override layer to write (`.usda` or `.usdc`).
+    pub output: String,
+    /// Frame range `A-B` (inclusive); absent: the stage's time-code range.
+    #[serde(default)]
+    pub frames: Option<String>,
+}
+
+/// The answer to `POST /v1/bake`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BakeResponse {
+    /// The canonical stage path.
+    pub stage: String,
+    /// The canonical output path.
+    pub output: String,
+    pub elapsed_ms: f64,
+}
+
+/// Every error answer: a stable snake_case `code` (see the service's code
+/// table) and a message naming the offending element.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBody {
+    pub code: String,
+    pub message: String,
+}
+
+/// `/healthz` and `/readyz`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct HealthResponse {
+    /// `ok`, `ready` or `draining`.
+    pub status: String,
+}
+
+/// One array of a binary frame.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BinaryArray {
+    /// `posed` (with `index`: the curvenet), `rest` or `blend_shape_weights`
+    /// in requests; `points` or `gradients` in responses.
+    pub name: String,
+    /// The curvenet of a `posed` array.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index: Option<u32>,
+    /// Only `f32` (little-endian; `float32` and `<f4` are accepted too).
+    #[serde(default = "default_dtype")]
+    pub dtype: String,
+    /// `[n, 3]` for points, `[n, 9]` for gradients, `[k]` for weights.
+    pub shape: Vec<u64>,
+}
+
+fn default_dtype() -> String {
+    "f32".into()
+}
+
+/// The JSON header of one binary frame request. A curvenet without a
+/// `posed` array is not articulated this frame.
+#[derive(Debug, Clone, Default, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BinaryFrameHeader {
+    #[serde(default)]
+    pub arrays: Vec<BinaryArray>,
+    #[serde(default)]
+    pub blend_shape_mode: BlendShapeMode,
+    #[serde(default)]
+    pub gradients: bool,
+    #[serde(default)]
+    pub topology_hash: Option<String>,
+}
+
+/// The JSON header of one binary frame response.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct BinaryResponseHeader {
+    pub arrays: Vec<BinaryArray>,
+    pub solve_ms: f64,
+}

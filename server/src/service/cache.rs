@@ -1,0 +1,258 @@
+//! The binding cache: content hash → `Arc<Entry>`, bounded by an estimate
+//! of the bindings' memory, least recently used evicted first (moka, LRU
+//! policy). Concurrent requests for one new key compute it once.
+//!
+//! # The content hash
+//!
+//! A binding id is blake3 over a fixed binary encoding (not the JSON text,
+//! so formatting and field order do not matter) of exactly what the result
+//! of a frame depends on: the topology, the projection points as f64 bits,
+//! each curvenet (pool as f64 bits, splines, sample density), the effective
+//! options (defaults filled in, so an explicit default and an absent option
+//! give one id) and, only when there are any, the blend shapes. Every array
+//! is preceded by its length, so no two requests encode alike.
+
+use std::sync::{Arc, Mutex};
+
+use curvenet_core::blend_shapes::BlendShapes;
+use curvenet_core::{Binding, Workspace};
+use curvenet_schema::wire::{BindingRequest, BindingResponse};
+use moka::future::Cache;
+use moka::notification::RemovalCause;
+use moka::policy::EvictionPolicy;
+
+use crate::binding::EffectiveOptions;
+use crate::error::{Code, ServiceError};
+use crate::metrics::Metrics;
+
+/// A binding id: blake3 of the binding's content.
+pub type Key = [u8; 32];
+
+/// One cached binding and what a frame needs besides it.
+pub struct Entry {
+    pub id: String,
+    pub topology_hash: String,
+    pub binding: Binding,
+    /// `None` when the binding has no blend shapes.
+    pub shapes: Option<BlendShapes>,
+    pub n_shapes: usize,
+    /// The projection pose (the base of the `before` blend-shape mode).
+    pub projection_points: Vec<[f64; 3]>,
+    /// The answer to the post that computed it (`cached` false).
+    pub response: BindingResponse,
+    pub size_bytes: u64,
+    /// Workspaces of finished frames, reused by the next ones.
+    pub workspaces: Mutex<Vec<Workspace>>,
+}
+
+impl Entry {
+    /// A workspace for one frame: reused from earlier frames when one is free.
+    pub fn take_workspace(&self) -> Workspace {
+        let reused = self.workspaces.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        reused.unwrap_or_else(|| self.binding.workspace())
+    }
+
+    /// Returns a workspace for later frames (at most `keep` are kept).
+    pub fn give_workspace(&self, ws: Workspace, keep: usize) {
+        let mut pool = self.workspaces.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < keep {
+            pool.push(ws);
+        }
+    }
+}
+
+/// Estimated bytes of a binding: factor nonzeros × 12 (value and row
+/// index), cut halfedges × 64 (connectivity, corner sources, per-corner
+/// right-hand sides, face Laplacians), mesh vertices × 96 (surface points,
+/// projection points, vertex maps, the closest-point tree) and the blend
+/// shapes' offsets × 24.
+pub fn estimate_bytes(binding: &Binding, shape_offsets: usize) -> u64 {
+    let s = binding.stats();
+    (s.factor_nonzeros as u64) * 12 + (s.cut_halfedges as u64) * 64 + (s.mesh_vertices as u64) * 96 + (shape_offsets as u64) * 24
+}
+
+/// The cache: moka's future cache weighed in KiB (its weigher is u32).
+pub struct BindingCache {
+    cache: Cache<Key, Arc<Entry>>,
+    capacity_bytes: u64,
+    metrics: Arc<Metrics>,
+}
+
+impl BindingCache {
+    pub fn new(capacity_bytes: u64, metrics: Arc<Metrics>) -> Self {
+        let evictions = metrics.cache_evictions.clone();
+        let cache = Cache::builder()
+            .max_capacity(capacity_bytes / 1024)
+            .weigher(|_k: &Key, e: &Arc<Entry>| u32::try_from(e.size_bytes.div_ceil(1024)).unwrap_or(u32::MAX))
+            .eviction_policy(EvictionPolicy::lru())
+            .eviction_listener(move |_k, _v, cause| {
+                if matches!(cause, RemovalCause::Size | RemovalCause::Expired) {
+                    evictions.increment(1);
+                }
+            })
+            .build();
+        metrics.cache_capacity_bytes.set(capacity_bytes as f64);
+        Self { cache, capacity_bytes, metrics }
+    }
+
+    /// The cached binding `key`, if any (counts a hit or a miss).
+    pub async fn get(&self, key: &Key) -> Option<Arc<Entry>> {
+        let e = self.cache.get(key).await;
+        if e.is_some() { self.metrics.cache_hits.increment(1) } else { self.metrics.cache_misses.increment(1) }
+        e
+    }
+
+    /// The binding `key`, computed by `compute` unless cached. Concurrent
+    /// calls for one key run `compute` once; the others wait for it.
+    /// Returns the entry and whether it was cached.
+    pub async fn get_or_compute<F>(&self, key: Key, compute: F) -> Result<(Arc<Entry>, bool), ServiceError>
+    where
+        F: Future<Output = Result<Entry, ServiceError>>,
+    {
+        let entry = self
+            .cache
+            .entry(key)
+            .or_try_insert_with(async {
+                let e = compute.await?;
+                self.metrics.bindings_computed.increment(1);
+                Ok::<_, ServiceError>(Arc::new(e))
+            })
+            .await
+            .map_err(|e: Arc<ServiceError>| (*e).clone())?;
+        let fresh = entry.is_fresh();
+        if fresh { self.metrics.cache_misses.increment(1) } else { self.metrics.cache_hits.increment(1) }
+        let value = entry.into_value();
+        if value.size_bytes > self.capacity_bytes {
+            self.cache.invalidate(&key).await;
+            return Err(ServiceError::new(
+                Code::CacheTooSmall,
+                format!(
+                    "the binding needs about {} bytes but the whole cache holds {} (CURVENET_CACHE_BYTES / --cache-bytes)",
+                    value.size_bytes, self.capacity_bytes
+                ),
+            ));
+        }
+        Ok((value, !fresh))
+    }
+
+    /// Drops binding `key`; whether it was cached.
+    pub async fn remove(&self, key: &Key) -> bool {
+        self.cache.remove(key).await.is_some()
+    }
+
+    /// Runs moka's pending maintenance (evictions) and updates the gauges.
+    pub async fn refresh_gauges(&self) {
+        self.cache.run_pending_tasks().await;
+        self.metrics.cache_bytes.set((self.cache.weighted_size() * 1024) as f64);
+        self.metrics.cache_entries.set(self.cache.entry_count() as f64);
+    }
+}
+
+/// Lowercase hex of a hash.
+pub fn hex(bytes: &[u8; 32]) -> String {
+    blake3::Hash::from_bytes(*bytes).to_hex().to_string()
+}
+
+/// Parses a 64-digit hex binding id.
+pub fn parse_key(id: &str) -> Option<Key> {
+    blake3::Hash::from_hex(id).ok().map(|h| *h.as_bytes())
+}
+
+/// A blake3 hasher fed through a buffer (one `update` per 64 KiB, not per number).
+struct Writer {
+    hasher: blake3::Hasher,
+    buf: Vec<u8>,
+}
+
+impl Writer {
+    fn new(domain: &str) -> Self {
+        let mut w = Self { hasher: blake3::Hasher::new(), buf: Vec::with_capacity(1 << 16) };
+        w.bytes(domain.as_bytes());
+        w
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        if self.buf.len() + b.len() > self.buf.capacity() {
+            self.hasher.update(&self.buf);
+            self.buf.clear();
+        }
+        if b.len() > self.buf.capacity() {
+            self.hasher.update(b);
+        } else {
+            self.buf.extend_from_slice(b);
+        }
+    }
+    fn u64(&mut self, x: u64) {
+        self.bytes(&x.to_le_bytes());
+    }
+    fn f64(&mut self, x: f64) {
+        self.u64(x.to_bits());
+    }
+    fn u32s(&mut self, xs: &[u32]) {
+        self.u64(xs.len() as u64);
+        for x in xs {
+            self.bytes(&x.to_le_bytes());
+        }
+    }
+    fn points(&mut self, ps: &[[f64; 3]]) {
+        self.u64(ps.len() as u64);
+        for p in ps {
+            for c in p {
+                self.f64(*c);
+            }
+        }
+    }
+    fn finish(mut self) -> Key {
+        self.hasher.update(&self.buf);
+        *self.hasher.finalize().as_bytes()
+    }
+}
+
+/// blake3 of the topology alone.
+pub fn topology_key(req: &BindingRequest) -> Key {
+    let mut w = Writer::new("curvenet topology v1");
+    w.u32s(&req.face_vertex_counts);
+    w.u32s(&req.face_vertex_indices);
+    w.finish()
+}
+
+/// The binding id of `req` with its effective options (see the module docs).
+pub fn binding_key(req: &BindingRequest, options: &EffectiveOptions) -> Key {
+    let mut w = Writer::new("curvenet binding v1");
+    w.u32s(&req.face_vertex_counts);
+    w.u32s(&req.face_vertex_indices);
+    w.points(&req.projection_points);
+    w.u64(req.curvenets.len() as u64);
+    for c in &req.curvenets {
+        w.points(&c.pool);
+        w.u64(c.splines.len() as u64);
+        for s in &c.splines {
+            for i in s {
+                w.bytes(&i.to_le_bytes());
+            }
+        }
+        w.f64(c.sample_density);
+    }
+    w.u64(options.strict as u64);
+    w.f64(options.snap_tolerance);
+    w.f64(options.max_projection_distance);
+    if !req.blend_shapes.is_empty() {
+        w.bytes(b"blend shapes");
+        w.u64(req.blend_shapes.len() as u64);
+        for s in &req.blend_shapes {
+            w.points(&s.offsets);
+            match &s.point_indices {
+                Some(ix) => {
+                    w.u64(1);
+                    w.u32s(ix);
+                }
+                None => w.u64(0),
+            }
+            w.u64(s.inbetweens.len() as u64);
+            for ib in &s.inbetweens {
+                w.f64(ib.weight);
+                w.points(&ib.offsets);
+            }
+        }
+    }
+    w.finish()
+}

@@ -1,0 +1,73 @@
+//! The OpenAPI 3.1 description served at `/openapi.json`, generated from
+//! the handlers' annotations and the wire types of `curvenet_schema::wire`.
+
+use curvenet_schema::wire::{
+    BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
+    BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest, DeformResponse,
+    ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse, InbetweenSpec, Warning,
+};
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+use utoipa::{Modify, OpenApi, ToSchema};
+
+use crate::routes;
+
+/// A binary frame body (`application/octet-stream`): u32 LE header length,
+/// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
+/// `BinaryResponseHeader` in answers), then the listed arrays as raw
+/// little-endian f32.
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+#[allow(dead_code)]
+pub struct BinaryFrames(Vec<u8>);
+
+struct BearerAuth;
+
+impl Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme("bearer", SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()));
+    }
+}
+
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "curvenet",
+        description = "Curve-driven character mesh deformation (profile curves, de Goes et al. 2022) as a service. \
+                       Bindings are cached by content hash; frames deform a cached binding. Errors are \
+                       `{code, message}` with stable snake_case codes. When the server has a token, every route \
+                       but /healthz and /readyz needs `Authorization: Bearer <token>`."
+    ),
+    paths(
+        routes::create_binding,
+        routes::get_binding,
+        routes::delete_binding,
+        routes::post_frames,
+        routes::post_frames_batch,
+        routes::deform,
+        routes::bake,
+        routes::healthz,
+        routes::readyz,
+        routes::metrics,
+        routes::openapi_json,
+    ),
+    components(schemas(
+        BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
+        BindingTimings, Warning, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
+        DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, HealthResponse, BinaryArray,
+        BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
+    )),
+    modifiers(&BearerAuth),
+    tags(
+        (name = "bindings", description = "Bind a mesh to its curvenets (cached by content hash)"),
+        (name = "frames", description = "Deform frames of a binding"),
+        (name = "bake", description = "Bake a shot on the server's file system"),
+        (name = "operations", description = "Health, readiness, metrics, this document"),
+    )
+)]
+struct ApiDoc;
+
+/// The OpenAPI 3.1 document of the service.
+pub fn openapi() -> utoipa::openapi::OpenApi {
+    ApiDoc::openapi()
+}
