@@ -104,3 +104,49 @@ fn an_articulated_ring_changes_only_the_surface_it_bounds() {
     // nothing beyond it can move.
     assert!(beyond_palm <= 1e-9 * diag, "the change leaks past the palm ring: {beyond_palm:e}");
 }
+
+#[test]
+fn over_a_skinned_rest_pose_an_articulated_wrist_ring_changes_only_its_sides() {
+    // hand_skinned: the rest pose at frame 12 is linear blend skinning (index
+    // finger bent 115 degrees, wrist turned 15); the projection pose is the
+    // neutral hand. The wrist ring (the isolated closed curve) is widened by
+    // 15% about its centre in the tracked (rest) pose.
+    let b = bind_fixture("shots/hand_skinned/shot.usda");
+    let rest = b.stage.rest_points(&b.mesh, Some(12.0)).unwrap();
+    let diag = b.diagonal();
+    assert!(max_distance(&rest, &b.mesh.projection_points) > 0.2 * diag, "the skinned rest pose should move the hand");
+    let mut tracked = vec![[0.0; 3]; b.nets[0].pool.len()];
+    b.binding.tracked_pool_into(0, &rest, &mut tracked).unwrap();
+    let unposed = solve(&b, &[None], Some(&rest));
+    let err = max_distance(&unposed, &rest);
+    assert!(err <= 1e-9 * diag, "not articulated: output differs from the skinned rest pose by {err:e}");
+
+    let topo = b.layouts[0].topology();
+    let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
+    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
+    points.sort();
+    points.dedup();
+    let centre: [f64; 3] =
+        std::array::from_fn(|i| points.iter().map(|&p| tracked[p as usize][i]).sum::<f64>() / points.len() as f64);
+    let mut posed = tracked.clone();
+    for &p in &points {
+        posed[p as usize] = std::array::from_fn(|i| centre[i] + 1.15 * (tracked[p as usize][i] - centre[i]));
+    }
+    let out = solve(&b, &[Some(&posed)], Some(&rest));
+    // Falloff by height in the neutral hand: the wrist ring sits at y = 0.08,
+    // the palm ring (the next constrained curve towards the fingers) at y = 0.30.
+    let bands = [(0.0, 0.1), (0.1, 0.2), (0.2, 0.3), (0.3, 0.34), (0.34, f64::INFINITY)];
+    let mut largest = [0.0f64; 5];
+    for (v, p) in b.mesh.projection_points.iter().enumerate() {
+        let d = max_distance(&out[v..v + 1], &rest[v..v + 1]);
+        let k = bands.iter().position(|&(lo, hi)| p[1] >= lo && p[1] < hi).unwrap_or(0);
+        largest[k] = largest[k].max(d);
+    }
+    let table: Vec<String> =
+        bands.iter().zip(&largest).map(|((lo, hi), d)| format!("y in [{lo}, {hi}): {:.2e}", d / diag)).collect();
+    eprintln!("skinned rest, wrist ring widened 15%: largest displacement (x diagonal) {}", table.join("; "));
+    assert!(largest[0] > 5e-3 * diag, "the widened ring should move the wrist ({:e})", largest[0]);
+    // Falling off away from the ring, and nothing past the palm ring.
+    assert!(largest[2] < largest[0], "no falloff towards the palm: {table:?}");
+    assert!(largest[4] <= 1e-9 * diag, "the change leaks past the palm ring: {:e}", largest[4]);
+}

@@ -320,3 +320,48 @@ fn a_skinned_rest_pose_with_a_tracking_curvenet_bakes_to_the_rest_pose() {
     assert!(largest_motion > 0.1 * diagonal, "the skinned rest pose hardly moves ({largest_motion:e})");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// usd-core (the reference implementation, from `.venv`) composes the bake
+/// over its input and reads `/Hand/Mesh.points` at `frames`.
+fn usd_core_points(bake: &Path, input: &Path, frames: &[f64]) -> Vec<Vec<[f64; 3]>> {
+    let python = repo().join(".venv/bin/python");
+    assert!(python.exists(), "{} is missing: run scripts/python-env (scripts/test does)", python.display());
+    let script = r#"
+import json, sys
+from pxr import Sdf, Usd, UsdGeom
+root = Sdf.Layer.CreateAnonymous(".usda")
+root.subLayerPaths = [sys.argv[1], sys.argv[2]]
+stage = Usd.Stage.Open(root)
+points = UsdGeom.Mesh(stage.GetPrimAtPath("/Hand/Mesh")).GetPointsAttr()
+print(json.dumps([[list(p) for p in points.Get(t)] for t in json.loads(sys.argv[3])]))
+"#;
+    let frames = serde_json::to_string(frames).unwrap();
+    let out = Command::new(python)
+        .args(["-c", script, bake.to_str().unwrap(), input.to_str().unwrap(), &frames])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn usd_core_reads_the_bake_composed_over_its_input_as_the_in_process_solve() {
+    let dir = temp_dir("usd-core");
+    for shot in ["fixtures/shots/hand_wave/shot.usda", "fixtures/shots/hand_skinned/shot.usda"] {
+        let input = repo().join(shot);
+        let reference = Reference::new(&input);
+        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&reference.mesh.projection_points);
+        for ext in ["usda", "usdc"] {
+            let out = dir.join(format!("bake.{ext}"));
+            let run = bake(shot, &out, &["--frames", "1-12", "--quiet"]);
+            assert!(run.status.success(), "{}", stderr(&run));
+            let frames = [1.0, 6.0, 9.0, 12.0];
+            for (t, points) in frames.iter().zip(usd_core_points(&out, &input, &frames)) {
+                // float32 output: within a few ulps of the f64 solve.
+                let d = max_diff(&points, &reference.deform(*t));
+                assert!(d <= 1e-6 * diagonal, "{shot} ({ext}), frame {t}: usd-core reads {:e} of the diagonal away", d / diagonal);
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
