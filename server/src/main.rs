@@ -1,7 +1,12 @@
-//! `curvenet`: the command line (inspect a stage; bake and serve come with
-//! their issues). Errors go to stderr with a non-zero exit status.
+//! `curvenet`: the command line (inspect, bake, bench, serve, ...). Errors go
+//! to stderr with a non-zero exit status.
 
 mod cli;
+
+/// mimalloc keeps freed large blocks for reuse; glibc unmaps them, so each
+/// binding paid its first-touch page faults again.
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;

@@ -17,7 +17,7 @@
 //! Halfedges of one cut-face are contiguous, in loop order, so halfedge `h`
 //! is also face corner `h` (the corner at `tail(h)`).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use glam::{DVec2, DVec3};
 
@@ -285,7 +285,7 @@ impl<'s> Registry<'s> {
                 curve: CurvePoint::None,
             })
             .collect();
-        Self { surface, vertices, on_edge: HashMap::new(), in_face: HashMap::new() }
+        Self { surface, vertices, on_edge: HashMap::default(), in_face: HashMap::default() }
     }
 
     /// The cut-vertex at `loc`, merging with one closer than `tol`.
@@ -342,8 +342,8 @@ impl<'s> Registry<'s> {
             list.sort_by(|x, y| x.0.total_cmp(&y.0));
         }
         // Split pieces into chords (per face) and pieces along edges (per canonical edge).
-        let mut chords: HashMap<u32, Vec<Piece>> = HashMap::new();
-        let mut along: HashMap<(u32, u32), u32> = HashMap::new(); // (cv, cv) on an edge -> segment, directed a->b
+        let mut chords: HashMap<u32, Vec<Piece>> = HashMap::default();
+        let mut along: HashMap<(u32, u32), u32> = HashMap::default(); // (cv, cv) on an edge -> segment, directed a->b
         for p in &pieces {
             if let Some(c) = self.common_edge(p.face, p.a, p.b) {
                 // Every sub-piece of the edge between a and b runs along the segment.
@@ -370,7 +370,7 @@ impl<'s> Registry<'s> {
         }
 
         let mut out = Builder::default();
-        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::with_capacity(he.n_halfedges() + 4 * pieces.len());
+        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::with_capacity_and_hasher(he.n_halfedges() + 4 * pieces.len(), Default::default());
         let mut removed_vertices = vec![false; self.vertices.len()];
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();

@@ -33,7 +33,7 @@ pub mod locate;
 pub mod surface;
 pub mod trace;
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::time::Instant;
 
 use glam::DVec3;
@@ -249,7 +249,7 @@ impl Binding {
         let mut segments = Vec::new();
         let mut sample_spline = Vec::new();
         let mut nets = Vec::new();
-        let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::new();
+        let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::default();
         let mut n_slots = 0u32;
         for layout in curvenets {
             let range = NetRange { sample: samples.len() as u32, segment: segments.len() as u32, slot: n_slots };
@@ -281,7 +281,7 @@ impl Binding {
         let n_vertices = surface.mesh.n_vertices();
         let mut corner = vec![Corner::Fixed; cut.n_halfedges()];
         let mut crossings: Vec<CrossingRow> = Vec::new();
-        let mut crossing_row: HashMap<(u32, Side), u32> = HashMap::new();
+        let mut crossing_row: HashMap<(u32, Side), u32> = HashMap::default();
         let mut vertex_is_curve = vec![false; n_vertices];
         for h in 0..cut.n_halfedges() as u32 {
             let v = cut.tail(h);
