@@ -34,6 +34,23 @@ fn bend(p: [f64; 3]) -> [f64; 3] {
     [p[0], 0.5 + c * y - s * z, s * y + c * z]
 }
 
+/// The pool `tracked` with the wrist ring (the hand curvenet's isolated
+/// closed curve, fixtures/README.md) scaled by `factor` about its centre.
+fn widen_wrist_ring(b: &Bound, tracked: &[[f64; 3]], factor: f64) -> Vec<[f64; 3]> {
+    let topo = b.layouts[0].topology();
+    let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
+    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
+    points.sort();
+    points.dedup();
+    let centre: [f64; 3] =
+        std::array::from_fn(|i| points.iter().map(|&p| tracked[p as usize][i]).sum::<f64>() / points.len() as f64);
+    let mut posed = tracked.to_vec();
+    for &p in &points {
+        posed[p as usize] = std::array::from_fn(|i| centre[i] + factor * (tracked[p as usize][i] - centre[i]));
+    }
+    posed
+}
+
 #[test]
 fn rest_equal_to_projection_reproduces_the_single_pose_solve() {
     let b = bind_fixture("shots/hand_wave/shot.usda");
@@ -63,21 +80,9 @@ fn unarticulated_curvenets_follow_rigid_and_bent_rest_poses_exactly() {
 fn an_articulated_ring_changes_only_the_surface_it_bounds() {
     let b = bind_fixture("hand/hand_1k4.usda");
     let rest: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(|p| rigid(*p)).collect();
-    let layout = &b.layouts[0];
     let mut tracked = vec![[0.0; 3]; b.nets[0].pool.len()];
     b.binding.tracked_pool_into(0, &rest, &mut tracked).unwrap();
-    // The wrist ring: the isolated closed curve (fixtures/README.md).
-    let topo = layout.topology();
-    let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
-    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
-    points.sort();
-    points.dedup();
-    let centre: [f64; 3] =
-        std::array::from_fn(|i| points.iter().map(|&p| tracked[p as usize][i]).sum::<f64>() / points.len() as f64);
-    let mut posed = tracked.clone();
-    for &p in &points {
-        posed[p as usize] = std::array::from_fn(|i| centre[i] + 1.15 * (tracked[p as usize][i] - centre[i]));
-    }
+    let posed = widen_wrist_ring(&b, &tracked, 1.15);
     let out = solve(&b, &[Some(&posed)], Some(&rest));
     let unposed = solve(&b, &[Some(&tracked)], Some(&rest));
     assert!(max_distance(&unposed, &rest) <= 1e-9 * b.diagonal());
@@ -121,17 +126,7 @@ fn over_a_skinned_rest_pose_an_articulated_wrist_ring_changes_only_its_sides() {
     let err = max_distance(&unposed, &rest);
     assert!(err <= 1e-9 * diag, "not articulated: output differs from the skinned rest pose by {err:e}");
 
-    let topo = b.layouts[0].topology();
-    let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
-    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
-    points.sort();
-    points.dedup();
-    let centre: [f64; 3] =
-        std::array::from_fn(|i| points.iter().map(|&p| tracked[p as usize][i]).sum::<f64>() / points.len() as f64);
-    let mut posed = tracked.clone();
-    for &p in &points {
-        posed[p as usize] = std::array::from_fn(|i| centre[i] + 1.15 * (tracked[p as usize][i] - centre[i]));
-    }
+    let posed = widen_wrist_ring(&b, &tracked, 1.15);
     let out = solve(&b, &[Some(&posed)], Some(&rest));
     // Falloff by height in the neutral hand: the wrist ring sits at y = 0.08,
     // the palm ring (the next constrained curve towards the fingers) at y = 0.30.
