@@ -48,23 +48,28 @@ pub fn bind_mesh(
     mesh: &curvenet_schema::MeshData,
     nets: &[curvenet_schema::CurvenetData],
 ) -> CliResult<curvenet_core::Binding> {
-    use curvenet_core::{BindOptions, Binding, ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+    use curvenet_core::binding::surface::Surface;
+    use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
     let core = |context: String| move |source| CliError::Core { context, source };
     let n = mesh.projection_points.len();
     let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).map_err(core(mesh.path.clone()))?;
-    let bvh = ClosestPointBvh::new(&topology, &mesh.projection_points).map_err(core(mesh.path.clone()))?;
-    let mean_edge = topology.mean_edge_length(&mesh.projection_points);
+    // One surface (validation, face planes, closest-point BVH) serves the
+    // curvenets' sampling and the binding.
+    let t0 = std::time::Instant::now();
+    let surface = Surface::new(&topology, &mesh.projection_points).map_err(core(mesh.path.clone()))?;
+    let surface_ms = t0.elapsed().as_secs_f64() * 1e3;
     let layouts = nets
         .iter()
         .map(|net| {
             let context = || format!("{} (bound to {})", net.path, mesh.path);
             let c = Curvenet::new(&net.splines, &net.pool).map_err(core(context()))?;
             let options = SamplingOptions::default().with_density(net.sample_density);
-            CurvenetLayout::with_closest_point(&c, &bvh, mean_edge, &options).map_err(core(context()))
+            CurvenetLayout::with_closest_point(&c, surface.closest_points(), surface.mean_edge_length(), &options)
+                .map_err(core(context()))
         })
         .collect::<CliResult<Vec<_>>>()?;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default())
+    Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms)
         .map_err(core(format!("{} (binding {})", mesh.path, net_list(nets))))
 }
 

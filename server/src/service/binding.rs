@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use curvenet_core::binding::CutOptions;
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{BindOptions, BindWarning, Binding, ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::binding::surface::Surface;
+use curvenet_core::{BindOptions, BindWarning, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, Warning};
 
 use crate::cache::{Entry, Key, estimate_bytes, hex};
@@ -128,8 +129,11 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
     let n_shapes = shapes.len();
     let shapes = (!shapes.is_empty()).then(|| BlendShapes::new(n, shapes));
 
-    let bvh = ClosestPointBvh::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
-    let mean_edge = mesh.mean_edge_length(&req.projection_points);
+    // One surface (validation, face planes, closest-point BVH) serves the
+    // curvenets' sampling and the binding.
+    let t_surface = Instant::now();
+    let surface = Surface::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
+    let surface_ms = t_surface.elapsed().as_secs_f64() * 1e3;
     let layouts = req
         .curvenets
         .iter()
@@ -137,14 +141,16 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
         .map(|(k, c)| {
             let ctx = format!("curvenets[{k}]");
             let net = Curvenet::new(&c.splines, &c.pool).map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))?;
-            CurvenetLayout::with_closest_point(&net, &bvh, mean_edge, &SamplingOptions::default().with_density(c.sample_density))
+            let sampling = SamplingOptions::default().with_density(c.sample_density);
+            CurvenetLayout::with_closest_point(&net, surface.closest_points(), surface.mean_edge_length(), &sampling)
                 .map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let analysis_ms = t0.elapsed().as_secs_f64() * 1e3;
+    // The surface is timed on its own (`surface_ms`), not as analysis.
+    let analysis_ms = t0.elapsed().as_secs_f64() * 1e3 - surface_ms;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::new(&mesh, &req.projection_points, &refs, &options.bind_options())
-        .map_err(|e| ServiceError::core(e, Phase::Bind))?;
+    let binding =
+        Binding::with_surface(surface, &refs, &options.bind_options(), surface_ms).map_err(|e| ServiceError::core(e, Phase::Bind))?;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let size_bytes = estimate_bytes(&binding, shape_offsets) + (n as u64) * 24;
