@@ -32,6 +32,7 @@ pub mod cut;
 pub mod locate;
 pub mod surface;
 pub mod trace;
+mod view;
 
 use rustc_hash::FxHashMap as HashMap;
 use std::time::Instant;

@@ -244,7 +244,7 @@ pub fn run(args: &Args) -> CliResult {
 
 /// The frames to bake: `--frames`, else the stage's time-code range, else
 /// the union of the time samples of the meshes' points and curvenets' pools.
-fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[(MeshData, Vec<CurvenetData>, bool)]) -> CliResult<Vec<f64>> {
+pub(super) fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[(MeshData, Vec<CurvenetData>, bool)]) -> CliResult<Vec<f64>> {
     if let Some(r) = requested {
         return Ok((r.first..=r.last).map(|t| t as f64).collect());
     }

@@ -47,6 +47,11 @@ pub struct Args {
     /// the unknowns and the factor, the time of each stage, and every warning.
     #[arg(long)]
     pub bind: bool,
+    /// After the report, open the stage in the browser viewer: serve on ADDR
+    /// (default 127.0.0.1:8720) as `curvenet serve --open-stage STAGE` does
+    /// and print the viewer's address; Ctrl-C stops.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "127.0.0.1:8720")]
+    pub serve: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -251,6 +256,12 @@ pub fn run(args: &Args) -> CliResult {
         .map(|e| e.message.as_str())
         .chain(report.meshes.iter().filter_map(|m| m.binding.as_ref()?.error.as_deref()))
         .collect();
+    if let Some(addr) = &args.serve {
+        for f in &failed {
+            eprintln!("curvenet: warning: {f}");
+        }
+        return serve_viewer(&args.stage, addr);
+    }
     if !failed.is_empty() {
         return Err(CliError::Input(format!(
             "the analysis or binding of {} prim{} failed:\n  {}",
@@ -260,6 +271,20 @@ pub fn run(args: &Args) -> CliResult {
         )));
     }
     Ok(())
+}
+
+/// `inspect STAGE --serve [ADDR]`: `curvenet serve --addr ADDR --open-stage STAGE`
+/// (the other serve options from their environment variables).
+fn serve_viewer(stage: &std::path::Path, addr: &str) -> CliResult {
+    use clap::Parser as _;
+    #[derive(clap::Parser)]
+    struct Serve {
+        #[command(flatten)]
+        args: super::serve::Args,
+    }
+    let argv = ["serve".into(), "--addr".into(), addr.into(), "--open-stage".into(), stage.as_os_str().to_owned()];
+    let serve = Serve::try_parse_from::<_, std::ffi::OsString>(argv).map_err(|e| CliError::Input(e.to_string()))?;
+    super::serve::run(&serve.args)
 }
 
 fn build(stage: &Stage, args: &Args) -> CliResult<Report> {

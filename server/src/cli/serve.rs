@@ -10,7 +10,10 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser as _;
-use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config};
+use curvenet_schema::usd::Stage;
+use curvenet_schema::wire::{BindingOptions, BindingRequest, BlendShapeSpec, CurvenetSpec, FrameRequest, InbetweenSpec};
+use curvenet_schema::{CurvenetData, MeshData};
+use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config, FrameSource, ViewerStage};
 
 use super::{CliError, CliResult};
 
@@ -47,6 +50,11 @@ pub struct Args {
     /// 200, 1 otherwise (a container HEALTHCHECK without curl).
     #[arg(long)]
     pub healthcheck: bool,
+    /// Open a stage in the viewer (repeatable): each curvenet-deformed mesh
+    /// is listed at /viewer, bound on first view, its frames read from the
+    /// stage on demand.
+    #[arg(long = "open-stage", value_name = "STAGE")]
+    pub open_stages: Vec<PathBuf>,
 }
 
 /// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB.
@@ -91,6 +99,11 @@ pub fn run(args: &Args) -> CliResult {
         bake_roots: args.bake_roots.clone(),
     };
     let state = AppState::new(config, Some(baker())).map_err(|e| CliError::Input(e.to_string()))?;
+    for path in &args.open_stages {
+        for stage in open_stage(path)? {
+            state.open_in_viewer(stage);
+        }
+    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("curvenet-http")
@@ -102,6 +115,9 @@ pub fn run(args: &Args) -> CliResult {
             .map_err(|e| CliError::Io { context: format!("binding {}", args.addr), source: e })?;
         let addr = listener.local_addr().map_err(|e| CliError::Io { context: "reading the bound address".into(), source: e })?;
         println!("listening on http://{addr}");
+        if !args.open_stages.is_empty() {
+            println!("viewer: http://{addr}/viewer");
+        }
         use std::io::Write as _;
         let _ = std::io::stdout().flush();
         tracing::info!(%addr, auth = state.config().token.is_some(), cache_bytes = state.config().cache_bytes, "curvenet serve");
@@ -178,4 +194,124 @@ fn baker() -> Baker {
             if e.exit_code() == 75 { BakeFailure::Retry(e.to_string()) } else { BakeFailure::Input(e.to_string()) }
         })
     })
+}
+
+/// A frame request to the thread that owns an opened stage: (mesh, frame,
+/// where to answer).
+type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<FrameRequest, String>>);
+
+/// Opens `path` for the viewer: one [`ViewerStage`] per curvenet-deformed
+/// mesh, with the frames `curvenet bake` would bake (a stage with no time
+/// range and no time samples has one frame, its default values). The USD
+/// stage is not `Send`, so one thread owns it and reads frames on request.
+/// Fails, naming the stage and prim, when the stage breaks the contract.
+pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
+    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String);
+    let (setup_tx, setup_rx) = std::sync::mpsc::channel::<CliResult<Opened>>();
+    let (query_tx, query_rx) = std::sync::mpsc::channel::<FrameQuery>();
+    let owned = path.to_path_buf();
+    std::thread::Builder::new()
+        .name("curvenet-stage-reader".into())
+        .spawn(move || {
+            let opened = (|| -> CliResult<(Stage, Opened)> {
+                let stage = Stage::open(&owned)?;
+                let meshes = stage.deformed_meshes()?;
+                if meshes.is_empty() {
+                    return Err(CliError::Input(format!(
+                        "{}: no Mesh has rel curvenet:curvenets, so there is nothing to view",
+                        stage.path()
+                    )));
+                }
+                let mut inputs = Vec::with_capacity(meshes.len());
+                for mesh in meshes {
+                    let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+                    let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
+                    inputs.push((mesh, nets, reads_rest));
+                }
+                let animated = stage.time_code_range().is_some()
+                    || inputs.iter().any(|(m, nets, _)| !m.rest_sample_times.is_empty() || nets.iter().any(|n| !n.sample_times.is_empty()));
+                let times = if animated { super::bake::frames(&stage, None, &inputs)? } else { vec![0.0] };
+                let name = stage.path().to_string();
+                Ok((stage, (inputs, times, name)))
+            })();
+            let (stage, opened) = match opened {
+                Ok(x) => x,
+                Err(e) => {
+                    let _ = setup_tx.send(Err(e));
+                    return;
+                }
+            };
+            let inputs = opened.0.clone();
+            let times = opened.1.clone();
+            if setup_tx.send(Ok(opened)).is_err() {
+                return;
+            }
+            // Serve frame reads until every ViewerStage (every sender) is gone.
+            for (m, k, answer) in query_rx {
+                let (mesh, nets, reads_rest) = &inputs[m];
+                let _ = answer.send(read_frame(&stage, mesh, nets, *reads_rest, times[k]));
+            }
+        })
+        .map_err(|e| CliError::Io { context: "starting the stage reader thread".into(), source: e })?;
+    let (inputs, times, name) = setup_rx
+        .recv()
+        .map_err(|_| CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display())))??;
+    let query_tx = std::sync::Mutex::new(query_tx);
+    let query_tx = Arc::new(query_tx);
+    Ok(inputs
+        .into_iter()
+        .enumerate()
+        .map(|(m, (mesh, nets, _))| {
+            let queries = query_tx.clone();
+            let n_frames = times.len();
+            let frame: FrameSource = Arc::new(move |k: usize| {
+                if k >= n_frames {
+                    return Err(format!("frame {k} does not exist ({n_frames} frames)"));
+                }
+                let (tx, rx) = std::sync::mpsc::channel();
+                queries.lock().unwrap_or_else(|e| e.into_inner()).send((m, k, tx)).map_err(|_| "the stage reader has stopped".to_string())?;
+                rx.recv().map_err(|_| "the stage reader has stopped".to_string())?
+            });
+            let curvenets = nets.iter().map(|n| n.path.clone()).collect();
+            ViewerStage::new(name.clone(), mesh.path.clone(), curvenets, times.clone(), binding_request(&mesh, &nets), frame)
+        })
+        .collect())
+}
+
+/// The service's binding request for a mesh of a stage (default options).
+pub fn binding_request(mesh: &MeshData, nets: &[CurvenetData]) -> BindingRequest {
+    BindingRequest {
+        face_vertex_counts: mesh.face_vertex_counts.clone(),
+        face_vertex_indices: mesh.face_vertex_indices.clone(),
+        projection_points: mesh.projection_points.clone(),
+        curvenets: nets
+            .iter()
+            .map(|n| CurvenetSpec { pool: n.pool.clone(), splines: n.splines.clone(), sample_density: n.sample_density })
+            .collect(),
+        blend_shapes: mesh
+            .blend_shapes
+            .iter()
+            .map(|s| BlendShapeSpec {
+                name: Some(s.name.clone()),
+                offsets: s.offsets.clone(),
+                point_indices: s.point_indices.clone(),
+                inbetweens: s.inbetweens.iter().map(|i| InbetweenSpec { weight: i.weight, offsets: i.offsets.clone() }).collect(),
+            })
+            .collect(),
+        options: BindingOptions::default(),
+    }
+}
+
+/// One mesh's frame at `time`, as the bake reads it: the posed pools (none
+/// for a curvenet without time samples), the rest pose when the mesh's
+/// points are animated or differ from the projection pose, the blend-shape weights.
+fn read_frame(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData], reads_rest: bool, time: f64) -> Result<FrameRequest, String> {
+    let posed = nets.iter().map(|n| stage.posed_pool(n, Some(time))).collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())?;
+    let rest = if reads_rest { Some(stage.rest_points(mesh, Some(time)).map_err(|e| e.to_string())?) } else { None };
+    let weights = if mesh.blend_shapes.is_empty() {
+        None
+    } else {
+        Some(stage.blend_shape_weights(mesh, Some(time)).map_err(|e| e.to_string())?)
+    };
+    Ok(FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() })
 }

@@ -10,6 +10,7 @@
 //! cache.rs     content hash → Arc<Entry> (moka, weighed in bytes, LRU)
 //! binding.rs   BindingRequest → validated core inputs → curvenet_core::Binding
 //! error.rs     the error type and its code → status table
+//! viewer.rs    the browser viewer at /viewer (assets in viewer/) and its read-only JSON
 //! ```
 //!
 //! `app(state)` is the whole router, so tests drive it with `oneshot`;
@@ -25,11 +26,13 @@ mod metrics;
 mod openapi;
 mod routes;
 mod state;
+mod viewer;
 
 pub use bake::{BakeFailure, BakeJob, Baker};
 pub use error::{Code, ServiceError};
 pub use openapi::openapi;
 pub use routes::app;
+pub use viewer::{FrameSource, ViewerStage};
 pub use state::{AppState, Config, DEFAULT_BODY_LIMIT, DEFAULT_CACHE_BYTES, DEFAULT_DRAIN_TIMEOUT, DEFAULT_MAX_SOLVES};
 
 use std::future::Future;

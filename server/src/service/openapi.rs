@@ -9,7 +9,7 @@ use curvenet_schema::wire::{
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
 
-use crate::routes;
+use crate::{routes, viewer};
 
 /// A binary frame body (`application/octet-stream`): u32 LE header length,
 /// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
@@ -50,18 +50,26 @@ impl Modify for BearerAuth {
         routes::readyz,
         routes::metrics,
         routes::openapi_json,
+        viewer::stages,
+        viewer::stage,
+        viewer::stage_frame,
+        viewer::viewer_data,
+        viewer::viewer_frame,
     ),
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
         BindingTimings, Warning, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
         DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
+        viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
+        viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
     )),
     modifiers(&BearerAuth),
     tags(
         (name = "bindings", description = "Bind a mesh to its curvenets (cached by content hash)"),
         (name = "frames", description = "Deform frames of a binding"),
         (name = "bake", description = "Bake a shot on the server's file system"),
+        (name = "viewer", description = "Read-only geometry for the browser viewer at /viewer"),
         (name = "operations", description = "Health, readiness, metrics, this document"),
     )
 )]

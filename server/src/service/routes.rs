@@ -33,10 +33,17 @@ use crate::error::{Code, ServiceError};
 use crate::frames::{self, Frame, Solved};
 use crate::openapi::BinaryFrames;
 use crate::state::{AppState, blocking, panic_message};
+use crate::viewer;
 
 /// The whole service: `/v1` API, `/healthz`, `/readyz`, `/metrics`, `/openapi.json`.
 pub fn app(state: AppState) -> Router {
-    let open = Router::new().route("/healthz", get(healthz)).route("/readyz", get(readyz));
+    let open = Router::new()
+        .route("/healthz", get(healthz))
+        .route("/readyz", get(readyz))
+        // The viewer page holds no data (it asks for the token itself).
+        .route("/viewer", get(viewer::page))
+        .route("/viewer/viewer.js", get(viewer::script))
+        .route("/viewer/viewer.css", get(viewer::style));
     let api = Router::new()
         .route("/v1/bindings", post(create_binding))
         .route("/v1/bindings/{id}", get(get_binding).delete(delete_binding))
@@ -44,6 +51,11 @@ pub fn app(state: AppState) -> Router {
         .route("/v1/bindings/{id}/frames:batch", post(post_frames_batch))
         .route("/v1/deform", post(deform))
         .route("/v1/bake", post(bake))
+        .route("/v1/bindings/{id}/viewer-data", get(viewer::viewer_data))
+        .route("/v1/bindings/{id}/viewer-frame", post(viewer::viewer_frame))
+        .route("/v1/viewer/stages", get(viewer::stages))
+        .route("/v1/viewer/stages/{index}", get(viewer::stage))
+        .route("/v1/viewer/stages/{index}/frames/{k}", get(viewer::stage_frame))
         .route("/metrics", get(metrics))
         .route("/openapi.json", get(openapi_json))
         .route_layer(from_fn_with_state(state.clone(), auth));
@@ -148,7 +160,7 @@ async fn content_length_limit(State(state): State<AppState>, req: Request, next:
 }
 
 /// Reads the whole body, at most the configured limit (413 beyond).
-async fn read_body(state: &AppState, body: Body) -> Result<Bytes, ServiceError> {
+pub(crate) async fn read_body(state: &AppState, body: Body) -> Result<Bytes, ServiceError> {
     let limit = state.config().body_limit;
     match http_body_util::Limited::new(body, limit).collect().await {
         Ok(c) => Ok(c.to_bytes()),
@@ -158,12 +170,12 @@ async fn read_body(state: &AppState, body: Body) -> Result<Bytes, ServiceError> 
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Form {
+pub(crate) enum Form {
     Json,
     Binary,
 }
 
-fn form(headers: &HeaderMap, binary_ok: bool) -> Result<Form, ServiceError> {
+pub(crate) fn form(headers: &HeaderMap, binary_ok: bool) -> Result<Form, ServiceError> {
     let Some(ct) = headers.get(header::CONTENT_TYPE) else { return Ok(Form::Json) };
     let ct = ct.to_str().unwrap_or("").split(';').next().unwrap_or("").trim().to_ascii_lowercase();
     if ct == "application/json" || ct.ends_with("+json") {
@@ -176,7 +188,7 @@ fn form(headers: &HeaderMap, binary_ok: bool) -> Result<Form, ServiceError> {
     }
 }
 
-fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, ServiceError> {
+pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, ServiceError> {
     serde_json::from_slice(bytes).map_err(|e| ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")))
 }
 
@@ -185,7 +197,7 @@ fn json_bytes(bytes: Vec<u8>) -> Response {
 }
 
 /// Finds a cached binding or answers `unknown_binding`.
-async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, ServiceError> {
+pub(crate) async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, ServiceError> {
     tracing::Span::current().record("binding_id", id);
     let key = parse_key(id).ok_or_else(|| ServiceError::unknown_binding(id))?;
     state.inner.cache.get(&key).await.ok_or_else(|| ServiceError::unknown_binding(id))
@@ -193,7 +205,7 @@ async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, ServiceError> 
 
 /// Validates, hashes and binds (through the cache). Returns the entry and
 /// whether it was cached.
-async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<Entry>, bool), ServiceError> {
+pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<Entry>, bool), ServiceError> {
     let req = Arc::new(req);
     let (key, topology, options) = blocking({
         let req = req.clone();

@@ -72,6 +72,8 @@ pub(crate) struct Inner {
     pub metrics: Arc<Metrics>,
     pub token_hash: Option<blake3::Hash>,
     pub draining: AtomicBool,
+    /// Stages opened in the viewer (`serve --open-stage`), by index.
+    pub viewer_stages: std::sync::RwLock<Vec<Arc<crate::viewer::ViewerStage>>>,
 }
 
 impl AppState {
@@ -103,6 +105,7 @@ impl AppState {
                 pool,
                 metrics,
                 draining: AtomicBool::new(false),
+                viewer_stages: Default::default(),
             }),
         })
     }

@@ -1,0 +1,257 @@
+//! The viewer's page and read-only endpoints (server/src/service/viewer.rs),
+//! driven through `app(state)`: the page is self-contained, the geometry it
+//! draws agrees with the binding's counts, frames solve through the service
+//! path (neutral pose reproduced, rigid motions carried), and stages opened
+//! with a frame source are listed, bound and solved.
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::body::{Body, Bytes};
+use axum::http::{HeaderMap, Request, StatusCode, header};
+use curvenet_schema::usd::Stage;
+use curvenet_schema::wire::{BindingRequest, CurvenetSpec, FrameRequest};
+use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
+use serde_json::{Value, json};
+use tower::ServiceExt as _;
+
+fn hand() -> BindingRequest {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/hand/hand_1k4.usda");
+    let stage = Stage::open(&path).unwrap();
+    let mesh = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
+    let curvenets = mesh
+        .curvenets
+        .iter()
+        .map(|p| {
+            let c = stage.curvenet(p).unwrap();
+            CurvenetSpec { pool: c.pool, splines: c.splines, sample_density: c.sample_density }
+        })
+        .collect();
+    BindingRequest {
+        face_vertex_counts: mesh.face_vertex_counts,
+        face_vertex_indices: mesh.face_vertex_indices,
+        projection_points: mesh.projection_points,
+        curvenets,
+        blend_shapes: Vec::new(),
+        options: Default::default(),
+    }
+}
+
+fn state(token: Option<&str>) -> AppState {
+    AppState::new(Config { solve_threads: 2, token: token.map(String::from), ..Config::default() }, None).unwrap()
+}
+
+async fn send(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes) {
+    let r = app.clone().oneshot(req).await.unwrap();
+    let status = r.status();
+    let headers = r.headers().clone();
+    (status, headers, axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap())
+}
+
+fn get(uri: &str) -> Request<Body> {
+    Request::get(uri).body(Body::empty()).unwrap()
+}
+
+fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
+    Request::post(uri).header(header::CONTENT_TYPE, "application/json").body(Body::from(serde_json::to_vec(body).unwrap())).unwrap()
+}
+
+async fn json_of(app: &Router, req: Request<Body>) -> Value {
+    let (status, _, body) = send(app, req).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    serde_json::from_slice(&body).unwrap()
+}
+
+fn floats(v: &Value) -> Vec<f64> {
+    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+}
+
+fn ints(v: &Value) -> Vec<u64> {
+    v.as_array().unwrap().iter().map(|x| x.as_u64().unwrap()).collect()
+}
+
+fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+/// f32 output of values of order 1, with room for the solve's rounding.
+const TOL: f64 = 1e-5;
+
+fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
+    pool.iter().map(|p| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]).collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_page_is_self_contained_and_open_without_the_token() {
+    let app = app(state(Some("secret")));
+    for (path, kind) in [("/viewer", "text/html"), ("/viewer/viewer.js", "text/javascript"), ("/viewer/viewer.css", "text/css")] {
+        let (status, headers, body) = send(&app, get(path)).await;
+        assert_eq!(status, StatusCode::OK, "{path}");
+        assert!(headers[header::CONTENT_TYPE].to_str().unwrap().starts_with(kind), "{path}");
+        let csp = headers[header::CONTENT_SECURITY_POLICY].to_str().unwrap();
+        assert!(csp.starts_with("default-src 'self'") && !csp.contains("http"), "{csp}");
+        let text = String::from_utf8(body.to_vec()).unwrap();
+        // Nothing is fetched from anywhere else: no absolute URLs at all.
+        assert!(!text.contains("://"), "{path} names an absolute URL");
+    }
+    let (_, _, page) = send(&app, get("/viewer")).await;
+    let page = String::from_utf8(page.to_vec()).unwrap();
+    assert!(page.contains(r#"src="viewer/viewer.js""#) && page.contains(r#"href="viewer/viewer.css""#));
+    // The data needs the token.
+    let (status, _, body) = send(&app, get("/v1/viewer/stages")).await;
+    assert_eq!(status, StatusCode::UNAUTHORIZED);
+    assert_eq!(serde_json::from_slice::<Value>(&body).unwrap()["code"], "unauthorized");
+    let req = Request::get("/v1/viewer/stages").header(header::AUTHORIZATION, "Bearer secret").body(Body::empty()).unwrap();
+    assert_eq!(json_of(&app, req).await, json!({"stages": []}));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn viewer_data_agrees_with_the_binding_and_frames_solve() {
+    let app = app(state(None));
+    let req = hand();
+    let bound = json_of(&app, post_json("/v1/bindings", &req)).await;
+    let id = bound["binding_id"].as_str().unwrap();
+    let stats = &bound["stats"];
+    let n = |k: &str| stats[k].as_u64().unwrap() as usize;
+    let data = json_of(&app, get(&format!("/v1/bindings/{id}/viewer-data"))).await;
+    assert_eq!(data["binding"]["stats"], *stats);
+
+    // The mesh.
+    let mesh = &data["mesh"];
+    assert_eq!(floats(&mesh["points"]).len(), 3 * n("mesh_vertices"));
+    let faces = ints(&mesh["triangle_face"]);
+    assert_eq!(faces.iter().max().map(|&f| f as usize + 1), Some(n("mesh_faces")));
+    assert_eq!(ints(&mesh["triangles"]).len(), 3 * faces.len());
+    let corners: usize = req.face_vertex_counts.iter().map(|&c| c as usize).sum();
+    assert_eq!(faces.len(), corners - 2 * req.face_vertex_counts.len(), "a fan of c - 2 triangles per face");
+
+    // The cut-mesh: every count of the binding is visible in it.
+    let cut = &data["cut"];
+    assert_eq!(floats(&cut["points"]).len(), 3 * n("cut_vertices"));
+    assert_eq!(ints(&cut["face_parent"]).len(), n("cut_faces"));
+    assert_eq!(ints(&cut["face_vertices"]).len(), n("cut_halfedges"));
+    let kinds = ints(&cut["edge_kind"]);
+    assert_eq!(ints(&cut["edges"]).len(), 2 * kinds.len());
+    assert_eq!(kinds.iter().filter(|&&k| k == 2).count(), n("cracks"));
+    let boundary = kinds.iter().filter(|&&k| k == 3).count();
+    assert_eq!(2 * (kinds.len() - boundary) + boundary, n("cut_halfedges"), "one edge per halfedge pair");
+    assert!(kinds.contains(&1), "no cut-mesh edge runs along the curvenet");
+
+    // The curvenet: samples, segments, marked points, frames.
+    let nets = data["curvenets"].as_array().unwrap();
+    assert_eq!(nets.len(), 1);
+    let net = &nets[0];
+    let samples = floats(&net["samples"]);
+    assert_eq!(samples.len(), 3 * n("samples"));
+    assert_eq!(ints(&net["segments"]).len(), 2 * n("segments"));
+    assert_eq!(floats(&net["frames"]).len(), 18 * n("segments"));
+    assert_eq!(floats(&net["projections"]).len(), samples.len());
+    assert!(!ints(&net["intersections"]).is_empty() && !ints(&net["anchors"]).is_empty());
+    assert!(ints(&net["intersections"]).iter().chain(&ints(&net["anchors"])).all(|&i| (i as usize) < n("samples")));
+    assert!(ints(&net["removed_samples"]).is_empty() && n("islands_removed") == 0);
+    // Projections are on the surface, within the binding's limit of the samples.
+    let diag = data["diagonal"].as_f64().unwrap();
+    assert!(max_diff(&samples, &floats(&net["projections"])) < 0.05 * diag);
+
+    // The neutral frame reproduces the projection pose; its curvenet is the neutral one.
+    let uri = format!("/v1/bindings/{id}/viewer-frame");
+    let neutral = json_of(&app, post_json(&uri, &json!({}))).await;
+    assert!(max_diff(&floats(&neutral["points"]), &floats(&mesh["points"])) < TOL);
+    assert!(max_diff(&floats(&neutral["cut_points"]), &floats(&cut["points"])) < TOL);
+    assert!(max_diff(&floats(&neutral["curvenets"][0]["samples"]), &samples) < TOL);
+    assert!(max_diff(&floats(&neutral["curvenets"][0]["frames"]), &floats(&net["frames"])) < TOL);
+    assert!(neutral.get("rest").is_none());
+
+    // A translated pool: everything moves with it, and the frames do not change.
+    let d = [0.05, -0.02, 0.03];
+    let moved = json_of(&app, post_json(&uri, &json!({"posed": [shifted(&req.curvenets[0].pool, d)]}))).await;
+    let expect = |flat: &[f64]| flat.iter().enumerate().map(|(i, x)| x + d[i % 3]).collect::<Vec<_>>();
+    assert!(max_diff(&floats(&moved["points"]), &expect(&floats(&mesh["points"]))) < TOL);
+    assert!(max_diff(&floats(&moved["cut_points"]), &expect(&floats(&cut["points"]))) < TOL);
+    assert!(max_diff(&floats(&moved["curvenets"][0]["samples"]), &expect(&samples)) < TOL);
+    assert!(max_diff(&floats(&moved["curvenets"][0]["frames"]), &floats(&net["frames"])) < TOL);
+
+    // A frame with its own rest pose (the projection pose shifted): the rest
+    // view carries the mesh, the cut-vertices and the tracked curvenet.
+    let rest = shifted(&req.projection_points, d);
+    let with_rest = json_of(&app, post_json(&uri, &json!({"rest": rest}))).await;
+    let r = &with_rest["rest"];
+    assert!(max_diff(&floats(&r["points"]), &expect(&floats(&mesh["points"]))) < TOL);
+    assert!(max_diff(&floats(&r["cut_points"]), &expect(&floats(&cut["points"]))) < TOL);
+    assert!(max_diff(&floats(&r["curvenets"][0]["samples"]), &expect(&samples)) < TOL);
+    assert!(max_diff(&floats(&with_rest["points"]), &expect(&floats(&mesh["points"]))) < TOL);
+
+    // Errors are the service's: a wrong pool, an unknown binding.
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"posed": [[[0.0, 0.0, 0.0]]]}))).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    let e: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(e["code"], "count_mismatch", "{e}");
+    let unknown = format!("/v1/bindings/{}/viewer-data", "0".repeat(64));
+    let (status, _, body) = send(&app, get(&unknown)).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(serde_json::from_slice::<Value>(&body).unwrap()["code"], "unknown_binding");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
+    let state = state(None);
+    let req = hand();
+    let pool = req.curvenets[0].pool.clone();
+    // Frame k: the pool shifted by k cm along x; frame 2 cannot be read.
+    let frame: FrameSource = Arc::new(move |k: usize| {
+        if k == 2 {
+            return Err("/Hand/Curvenet: primvars:curvenet:cv has 3 control points at time 12, the neutral pose has 251".into());
+        }
+        Ok(FrameRequest { posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]), ..FrameRequest::default() })
+    });
+    let index = state.open_in_viewer(ViewerStage::new(
+        "shots/wave.usda".into(),
+        "/Hand/Mesh".into(),
+        vec!["/Hand/Curvenet".into()],
+        vec![10.0, 11.0, 12.0],
+        req.clone(),
+        frame,
+    ));
+    assert_eq!(index, 0);
+    let app = app(state);
+    let listed = json_of(&app, get("/v1/viewer/stages")).await;
+    assert_eq!(listed["stages"][0]["mesh"], "/Hand/Mesh");
+    assert_eq!(listed["stages"][0]["times"], json!([10.0, 11.0, 12.0]));
+
+    // Bound through the cache: the same id as posting the binding by hand.
+    let stage = json_of(&app, get("/v1/viewer/stages/0")).await;
+    assert_eq!(stage["binding"]["cached"], false);
+    let posted = json_of(&app, post_json("/v1/bindings", &req)).await;
+    assert_eq!(posted["cached"], true);
+    assert_eq!(stage["binding"]["binding_id"], posted["binding_id"]);
+
+    let f0 = json_of(&app, get("/v1/viewer/stages/0/frames/0")).await;
+    let f1 = json_of(&app, get("/v1/viewer/stages/0/frames/1")).await;
+    assert_eq!((f0["time"].as_f64(), f1["time"].as_f64()), (Some(10.0), Some(11.0)));
+    let (p0, p1) = (floats(&f0["points"]), floats(&f1["points"]));
+    let moved: Vec<f64> = p0.iter().enumerate().map(|(i, x)| if i % 3 == 0 { x + 0.01 } else { *x }).collect();
+    assert!(max_diff(&p1, &moved) < TOL, "frame 11 is frame 10 shifted by 1 cm");
+
+    // Errors name the stage and the frame.
+    let (status, _, body) = send(&app, get("/v1/viewer/stages/0/frames/2")).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    let e: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(e["code"], "invalid_parameter");
+    assert!(e["message"].as_str().unwrap().contains("shots/wave.usda, frame 12"), "{e}");
+    for (uri, what) in [("/v1/viewer/stages/0/frames/3", "frame 3"), ("/v1/viewer/stages/1", "no stage 1")] {
+        let (status, _, body) = send(&app, get(uri)).await;
+        assert_eq!(status, StatusCode::NOT_FOUND, "{uri}");
+        let e: Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(e["code"], "not_found");
+        assert!(e["message"].as_str().unwrap().contains(what), "{e}");
+    }
+
+    // The OpenAPI document lists the viewer's routes.
+    let doc = json_of(&app, get("/openapi.json")).await;
+    for path in
+        ["/v1/viewer/stages", "/v1/viewer/stages/{index}/frames/{k}", "/v1/bindings/{id}/viewer-data", "/v1/bindings/{id}/viewer-frame"]
+    {
+        assert!(doc["paths"].get(path).is_some(), "{path} missing");
+    }
+}

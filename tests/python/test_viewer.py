@@ -1,0 +1,408 @@
+"""The browser viewer (`/viewer`), end to end in Debian's Chromium.
+
+`curvenet serve --open-stage` opens the hand_wave shot; a headless Chromium
+(no sandbox, no GPU: WebGL2 through SwiftShader, background networking off)
+driven over the DevTools protocol on a pipe (`--remote-debugging-pipe`, no
+port, no websocket) loads the page and waits for the first frame. Then:
+
+- the screenshot is not blank: the shaded hand and the curvenet's colour are in it;
+- the counts in the side panel are those of `curvenet inspect --bind --json`
+  (a separate code path: the command line's own binding) and of the API;
+- moving the frame slider changes the rendered image, and moving it back
+  restores it;
+- clicking the hand picks a face, and the panel lists that face's cut-faces;
+- the page loaded nothing from anywhere but the server.
+
+Chromium comes from scripts/chromium (installs the `chromium` package where
+missing; CURVENET_CHROMIUM names one). The screenshot goes to
+target/viewer/viewer.png; with CURVENET_UPDATE_SCREENSHOT=1 also to
+docs/viewer.png (the README's). Needs the debug binary like
+test_service_client.py (CURVENET_BIN overrides its path)."""
+
+import base64
+import fcntl
+import json
+import os
+import pathlib
+import queue
+import shutil
+import struct
+import subprocess
+import tempfile
+import threading
+import time
+import urllib.request
+import zlib
+
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+STAGE = ROOT / "fixtures" / "shots" / "hand_wave" / "shot.usda"
+WIDTH, HEIGHT = 1100, 680
+PANEL = 310  # the side panel's width (viewer.css); the canvas is the rest
+BACKGROUND = np.array([27, 30, 35])  # the canvas clear colour (viewer.js)
+
+
+def _binary():
+    if os.environ.get("CURVENET_BIN"):
+        return pathlib.Path(os.environ["CURVENET_BIN"])
+    target = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target"))
+    return target / "debug" / "curvenet"
+
+
+def _chromium():
+    """The Chromium of scripts/chromium, installing it when missing."""
+    found = subprocess.run([str(ROOT / "scripts" / "chromium")], capture_output=True, text=True)
+    if found.returncode != 0 or not found.stdout.strip():
+        pytest.fail(f"no Chromium for the viewer test (scripts/chromium): {found.stderr.strip()}")
+    return found.stdout.strip().splitlines()[-1]
+
+
+# ------------------------------------------------------------------ PNG
+
+
+def decode_png(data):
+    """An 8-bit RGB(A), non-interlaced PNG as an (H, W, 3) uint8 array."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
+    pos, idat, header = 8, [], None
+    while pos < len(data):
+        (n, kind) = struct.unpack(">I4s", data[pos:pos + 8])
+        chunk = data[pos + 8:pos + 8 + n]
+        pos += 12 + n
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", chunk)
+        elif kind == b"IDAT":
+            idat.append(chunk)
+        elif kind == b"IEND":
+            break
+    width, height, depth, color, _, _, interlace = header
+    assert depth == 8 and interlace == 0 and color in (2, 6), f"unsupported PNG: depth {depth}, colour type {color}"
+    bpp = 3 if color == 2 else 4
+    stride = width * bpp
+    raw = zlib.decompress(b"".join(idat))
+    rows = []
+    prev = [0] * stride
+    for y in range(height):
+        kind = raw[y * (stride + 1)]
+        line = list(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        if kind == 1:  # Sub
+            arr = np.array(line, dtype=np.int64).reshape(width, bpp)
+            line = (np.cumsum(arr, axis=0) % 256).reshape(-1).tolist()
+        elif kind == 2:  # Up
+            line = [(a + b) & 255 for a, b in zip(line, prev)]
+        elif kind == 3:  # Average
+            for x in range(stride):
+                left = line[x - bpp] if x >= bpp else 0
+                line[x] = (line[x] + ((left + prev[x]) >> 1)) & 255
+        elif kind == 4:  # Paeth
+            for x in range(stride):
+                a = line[x - bpp] if x >= bpp else 0
+                b = prev[x]
+                c = prev[x - bpp] if x >= bpp else 0
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[x] = (line[x] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append(line)
+        prev = line
+    return np.array(rows, dtype=np.uint8).reshape(height, width, bpp)[:, :, :3]
+
+
+# ------------------------------------------------------------------ DevTools over a pipe
+
+
+class DevTools:
+    """Chromium with `--remote-debugging-pipe`: commands are JSON messages
+    ending in a NUL byte, written to the browser's fd 3; answers and events
+    come back on its fd 4."""
+
+    def __init__(self, chromium, profile, log):
+        to_browser_r, to_browser_w = os.pipe()
+        from_browser_r, from_browser_w = os.pipe()
+        # The browser's ends move above 4 first, so dup2 onto 3 and 4 cannot clobber one another.
+        child_r = fcntl.fcntl(to_browser_r, fcntl.F_DUPFD_CLOEXEC, 10)
+        child_w = fcntl.fcntl(from_browser_w, fcntl.F_DUPFD_CLOEXEC, 10)
+        os.close(to_browser_r)
+        os.close(from_browser_w)
+
+        def wire_pipes():
+            os.dup2(child_r, 3)
+            os.dup2(child_w, 4)
+
+        args = [
+            chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+            "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--remote-debugging-pipe",
+            f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}", "--hide-scrollbars",
+            "--no-first-run", "--no-default-browser-check", "--disable-extensions", "--disable-sync",
+            "--disable-component-update", "--disable-dev-shm-usage", "--mute-audio", "about:blank",
+        ]
+        self.proc = subprocess.Popen(args, stdin=subprocess.DEVNULL, stdout=log, stderr=log,
+                                     preexec_fn=wire_pipes, close_fds=False)
+        os.close(child_r)
+        os.close(child_w)
+        self.out = os.fdopen(to_browser_w, "wb", buffering=0)
+        self.answers = {}
+        self.events = []
+        self.cond = threading.Condition()
+        self.next_id = 0
+        self.reader = threading.Thread(target=self._read, args=(os.fdopen(from_browser_r, "rb", buffering=0),), daemon=True)
+        self.reader.start()
+
+    def _read(self, pipe):
+        buf = b""
+        while True:
+            data = pipe.read(1 << 16)
+            if not data:
+                with self.cond:
+                    self.answers[None] = "closed"
+                    self.cond.notify_all()
+                return
+            buf += data
+            while b"\0" in buf:
+                raw, buf = buf.split(b"\0", 1)
+                msg = json.loads(raw)
+                with self.cond:
+                    if "id" in msg:
+                        self.answers[msg["id"]] = msg
+                    else:
+                        self.events.append(msg)
+                    self.cond.notify_all()
+
+    def call(self, method, params=None, session=None, timeout=60):
+        with self.cond:
+            self.next_id += 1
+            n = self.next_id
+        msg = {"id": n, "method": method, "params": params or {}}
+        if session:
+            msg["sessionId"] = session
+        self.out.write(json.dumps(msg).encode() + b"\0")
+        deadline = time.monotonic() + timeout
+        with self.cond:
+            while n not in self.answers:
+                left = deadline - time.monotonic()
+                assert None not in self.answers, f"Chromium closed the DevTools pipe during {method}"
+                assert left > 0, f"{method} got no answer in {timeout} s"
+                self.cond.wait(left)
+            answer = self.answers.pop(n)
+        assert "error" not in answer, f"{method}: {answer['error']}"
+        return answer["result"]
+
+    def close(self):
+        try:
+            self.call("Browser.close", timeout=10)
+        except AssertionError:
+            pass
+        try:
+            self.proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+class Page:
+    def __init__(self, tools):
+        self.tools = tools
+        target = tools.call("Target.createTarget", {"url": "about:blank"})["targetId"]
+        self.session = tools.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        for domain in ("Page", "Runtime", "Network"):
+            self.call(f"{domain}.enable")
+        self.call("Emulation.setDeviceMetricsOverride", {"width": WIDTH, "height": HEIGHT, "deviceScaleFactor": 1, "mobile": False})
+
+    def call(self, method, params=None, timeout=60):
+        return self.tools.call(method, params, self.session, timeout)
+
+    def eval(self, expression):
+        r = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True, "awaitPromise": True})
+        assert "exceptionDetails" not in r, f"{expression}: {r['exceptionDetails']}"
+        return r["result"].get("value")
+
+    def errors(self):
+        """Uncaught exceptions and console errors of the page so far."""
+        out = []
+        for e in self.tools.events:
+            if e.get("sessionId") != self.session:
+                continue
+            if e["method"] == "Runtime.exceptionThrown":
+                out.append(e["params"]["exceptionDetails"].get("exception", {}).get("description") or e["params"]["exceptionDetails"]["text"])
+            elif e["method"] == "Runtime.consoleAPICalled" and e["params"]["type"] == "error":
+                out.append(" ".join(str(a.get("value", a.get("description"))) for a in e["params"]["args"]))
+        return out
+
+    def requested_urls(self):
+        return [e["params"]["request"]["url"] for e in self.tools.events
+                if e.get("sessionId") == self.session and e["method"] == "Network.requestWillBeSent"]
+
+    def wait_for(self, expression, want, timeout=120):
+        deadline = time.monotonic() + timeout
+        got = None
+        while time.monotonic() < deadline:
+            # Until the page has loaded, `document.body` may not exist yet.
+            got = self.eval(f"(() => {{ try {{ return {expression}; }} catch (e) {{ return 'not yet: ' + e; }} }})()")
+            if got == want:
+                return
+            if self.eval("document.body ? document.body.dataset.state : null") == "error":
+                break
+            time.sleep(0.1)
+        message = self.eval("document.getElementById('message').textContent")
+        raise AssertionError(f"{expression} is {got!r}, not {want!r} (page message: {message!r}; errors: {self.errors()})")
+
+    def screenshot(self):
+        """The page as the compositor shows it: (PNG bytes, the canvas region as an (H, W, 3) array)."""
+        png = base64.b64decode(self.call("Page.captureScreenshot", {"format": "png"})["data"])
+        pixels = decode_png(png)
+        assert pixels.shape[:2] == (HEIGHT, WIDTH), pixels.shape
+        return png, pixels[:, :WIDTH - PANEL]
+
+
+# ------------------------------------------------------------------ fixtures
+
+
+@pytest.fixture(scope="module")
+def server():
+    binary = _binary()
+    assert binary.exists(), f"{binary} is missing: build it first (cargo build --ignore-rust-version) or set CURVENET_BIN"
+    env = {k: v for k, v in os.environ.items() if not k.startswith("CURVENET_")}
+    proc = subprocess.Popen(
+        [str(binary), "serve", "--addr", "127.0.0.1:0", "--drain-timeout", "5", "--open-stage", str(STAGE)],
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
+    )
+    timer = threading.Timer(60, proc.kill)
+    timer.start()
+    first, second = proc.stdout.readline(), proc.stdout.readline()
+    timer.cancel()
+    assert first.startswith("listening on http://"), f"unexpected first line {first!r}"
+    url = first.split("listening on ")[1].strip()
+    assert second.strip() == f"viewer: {url}/viewer", second
+    yield url
+    proc.kill()
+    proc.wait()
+
+
+@pytest.fixture(scope="module")
+def page(server):
+    chromium = _chromium()
+    profile = tempfile.mkdtemp(prefix="curvenet-chromium-")
+    log = open(os.path.join(profile, "chromium.log"), "wb")
+    tools = DevTools(chromium, profile, log)
+    try:
+        p = Page(tools)
+        p.call("Page.navigate", {"url": f"{server}/viewer"})
+        yield p
+    finally:
+        tools.close()
+        log.close()
+        shutil.rmtree(profile, ignore_errors=True)
+
+
+def _get(url):
+    with urllib.request.urlopen(url) as r:
+        return json.loads(r.read())
+
+
+def _set_frame(page, k):
+    page.eval(f"(() => {{ const s = document.getElementById('frame'); s.value = '{k}';"
+              " s.dispatchEvent(new Event('input')); })()")
+    page.wait_for("document.body.dataset.rendered", str(k))
+    # One more animation frame, so that the drawn frame is the composited one.
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+
+
+def _changed(a, b):
+    """Fraction of pixels that differ by more than a little in any channel."""
+    return float(np.mean(np.abs(a.astype(int) - b.astype(int)).max(axis=2) > 8))
+
+
+# ------------------------------------------------------------------ the test
+
+
+def test_viewer_draws_the_shot_counts_match_and_the_slider_moves_it(server, page):
+    page.wait_for("document.body.dataset.state === 'ready' && document.body.dataset.rendered", "0")
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    assert page.eval("document.getElementById('frame').max") == "23"  # hand_wave: frames 1-24
+
+    # Not blank: the shaded hand and the curvenet are drawn over the background.
+    _, first = page.screenshot()
+    not_background = np.abs(first.astype(int) - BACKGROUND).max(axis=2) > 12
+    assert not_background.mean() > 0.08, f"only {not_background.mean():.1%} of the canvas is not background"
+    r, g, b = (first[:, :, k].astype(int) for k in range(3))
+    clay = (r > 90) & (r - b > 15) & (abs(r - g) < 40) & (b > 40)
+    curve = (r > 200) & (g > 150) & (b < 110)
+    assert clay.mean() > 0.04, f"the shaded mesh covers only {clay.mean():.1%} of the canvas"
+    assert curve.sum() > 200, f"only {curve.sum()} pixels have the curvenet's colour"
+    assert len(np.unique(first.reshape(-1, 3), axis=0)) > 200, "too few colours: the image looks flat"
+
+    # The counts shown are the binding's: against `inspect --bind` (the command
+    # line binds on its own) and the service's answer.
+    shown = page.eval("Object.fromEntries([...document.querySelectorAll('[data-stat]')]"
+                      ".map(e => [e.dataset.stat, Number(e.dataset.value)]))")
+    report = json.loads(subprocess.run([str(_binary()), "inspect", str(STAGE), "--bind", "--json"],
+                                       capture_output=True, text=True, check=True).stdout)
+    mesh = report["meshes"][0]
+    analysis = report["curvenets"][0]["analysis"]
+    expected = dict(mesh["binding"]["stats"], mesh_vertices=mesh["vertices"], mesh_faces=mesh["faces"],
+                    intersections=len(analysis["intersections"]), anchors=len(analysis["anchors"]), curvenets=1)
+    for name, value in expected.items():
+        assert shown.get(name) == value, f"the panel shows {name} = {shown.get(name)}, the binding has {value}"
+    api = _get(f"{server}/v1/viewer/stages/0")["binding"]
+    for name, value in api["stats"].items():
+        assert shown[name] == value, name
+    assert shown["blend_shapes"] == api["blend_shapes"] == 1
+    shown_warnings = page.eval("Number(document.getElementById('warning-count').dataset.value)")
+    data = _get(f"{server}/v1/bindings/{api['binding_id']}/viewer-data")
+    assert shown_warnings == len(data["warnings"])
+
+    # The slider moves the hand (the finger curls until frame 13 and comes
+    # back at frame 24); moving it back restores the image.
+    _set_frame(page, 12)
+    _, curled = page.screenshot()
+    assert _changed(first, curled) > 0.005, f"frame 13 differs from frame 1 in only {_changed(first, curled):.2%} of the pixels"
+    _set_frame(page, 0)
+    _, again = page.screenshot()
+    assert _changed(first, again) < 0.002, f"frame 1 drawn twice differs in {_changed(first, again):.2%} of the pixels"
+
+    # Picking: a click on an intersection of the curled finger lists the
+    # cut-faces of the face under it.
+    _set_frame(page, 12)
+    _, curled = page.screenshot()
+    r, g, b = (curled[:, :, k].astype(int) for k in range(3))
+    ys, xs = np.nonzero((r > 220) & (g < 90) & (b < 90))
+    assert len(xs) > 20, "no intersection markers drawn"
+    # The pixel nearest the markers' median that is well inside the hand
+    # (no background within 6 pixels): by the curvenet, off the silhouette.
+    hand = np.abs(curled.astype(int) - BACKGROUND).max(axis=2) > 12
+    inside = hand.copy()
+    for dy in range(-6, 7, 3):
+        for dx in range(-6, 7, 3):
+            inside &= np.roll(np.roll(hand, dy, axis=0), dx, axis=1)
+    surface_y, surface_x = np.nonzero(inside)
+    nearest = np.argmin((surface_x - np.median(xs)) ** 2 + (surface_y - np.median(ys)) ** 2)
+    x, y = int(surface_x[nearest]), int(surface_y[nearest])
+    page.call("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": x, "y": y})
+    for kind in ("mousePressed", "mouseReleased"):
+        page.call("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1})
+    page.wait_for("document.getElementById('pick-label').dataset.face !== undefined", True, timeout=30)
+    face = int(page.eval("document.getElementById('pick-label').dataset.face"))
+    cut_faces = int(page.eval("document.getElementById('pick-label').dataset.cutFaces"))
+    assert 0 <= face < mesh["faces"]
+    assert cut_faces == data["cut"]["face_parent"].count(face) >= 1
+
+    # The README's picture: zoomed in on the picked face, frame 13.
+    for _ in range(6):
+        page.call("Input.dispatchMouseEvent", {"type": "mouseWheel", "x": x, "y": y, "deltaX": 0, "deltaY": -120})
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    png, zoomed = page.screenshot()
+    assert _changed(curled, zoomed) > 0.05, "the wheel did not zoom"
+    out = pathlib.Path(os.environ.get("CARGO_TARGET_DIR", ROOT / "target")) / "viewer"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "viewer.png").write_bytes(png)
+    if os.environ.get("CURVENET_UPDATE_SCREENSHOT") == "1":
+        # At 0.8 scale: a smaller file for the repository.
+        clip = {"x": 0, "y": 0, "width": WIDTH, "height": HEIGHT, "scale": 0.8}
+        small = base64.b64decode(page.call("Page.captureScreenshot", {"format": "png", "clip": clip})["data"])
+        (ROOT / "docs").mkdir(exist_ok=True)
+        (ROOT / "docs" / "viewer.png").write_bytes(small)
+
+    # Everything came from the server, and the page raised nothing.
+    foreign = [u for u in page.requested_urls() if not u.startswith(server) and not u.startswith("data:")]
+    assert not foreign, f"the page loaded from elsewhere: {foreign}"
+    assert not page.errors(), page.errors()
