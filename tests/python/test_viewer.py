@@ -9,7 +9,7 @@ port, no websocket) loads the page and waits for the first frame. Then:
 - the counts in the side panel are those of `curvenet inspect --bind --json`
   (a separate code path: the command line's own binding) and of the API;
 - moving the frame slider changes the rendered image, and moving it back
-  restores it;
+  restores it; playback advances the frames and pauses;
 - clicking the hand picks a face, and the panel lists that face's cut-faces;
 - the page loaded nothing from anywhere but the server.
 
@@ -360,6 +360,15 @@ def test_viewer_draws_the_shot_counts_match_and_the_slider_moves_it(server, page
     _, again = page.screenshot()
     assert _changed(first, again) < 0.002, f"frame 1 drawn twice differs in {_changed(first, again):.2%} of the pixels"
 
+    # Playback advances the frames by itself; pause stops it.
+    page.eval("document.getElementById('play').click()")
+    page.wait_for("Number(document.body.dataset.rendered) >= 3", True, timeout=60)
+    page.eval("document.getElementById('play').click()")
+    time.sleep(0.5)  # a frame already requested may still arrive
+    stopped = page.eval("document.body.dataset.rendered")
+    time.sleep(0.5)
+    assert page.eval("document.body.dataset.rendered") == stopped, "playback did not pause"
+
     # Picking: a click on an intersection of the curled finger lists the
     # cut-faces of the face under it.
     _set_frame(page, 12)
@@ -387,7 +396,7 @@ def test_viewer_draws_the_shot_counts_match_and_the_slider_moves_it(server, page
     assert cut_faces == data["cut"]["face_parent"].count(face) >= 1
 
     # The README's picture: zoomed in on the picked face, frame 13.
-    for _ in range(6):
+    for _ in range(3):
         page.call("Input.dispatchMouseEvent", {"type": "mouseWheel", "x": x, "y": y, "deltaX": 0, "deltaY": -120})
     page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
     png, zoomed = page.screenshot()

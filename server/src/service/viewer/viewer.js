@@ -106,6 +106,22 @@
     camera.distance = camera.radius / Math.sin(camera.fovy / 2) * 1.02;
   }
 
+  // Turns the camera (about the vertical) to the side of the mesh where the
+  // curvenet's intersections are (all its samples when it has none).
+  function faceTheCurvenet(data) {
+    let sum = [0, 0, 0], n = 0;
+    for (const c of data.curvenets) {
+      const picks = c.intersections.length ? c.intersections : c.samples.map((_, i) => i).filter((i) => i % 3 === 0).map((i) => i / 3);
+      for (const i of picks) {
+        sum = vadd(sum, pick3(c.samples, i));
+        n++;
+      }
+    }
+    if (!n) return;
+    const d = vsub(vscale(sum, 1 / n), camera.target);
+    if (Math.hypot(d[0], d[2]) > 1e-6 * camera.radius) camera.yaw = Math.atan2(d[0], d[2]);
+  }
+
   // ------------------------------------------------------------ WebGL
 
   const gl = canvas.getContext('webgl2', { antialias: true, preserveDrawingBuffer: true });
@@ -913,6 +929,7 @@
       $('frame').disabled = view.times.length < 2;
       $('play').disabled = view.times.length < 2;
       fitCamera(data.mesh.points);
+      faceTheCurvenet(data);
       say('');
       await showFrame(0);
       if (generation !== view.generation) return;
