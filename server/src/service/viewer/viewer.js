@@ -282,7 +282,7 @@
     frame: 0,
     pose: 'deformed',
     picked: -1,
-    boxScale: 0.35,
+    boxScale: 1,
     layers: { shaded: true, wire: false, cut: true, curvenet: true, frames: true },
     gpu: null,          // static GPU objects of the binding
     dyn: null,          // GPU objects of the current pose
