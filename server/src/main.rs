@@ -24,6 +24,8 @@ enum Command {
     Inspect(cli::inspect::Args),
     /// Deform every mesh of a shot over a frame range and write the points as an override layer.
     Bake(cli::bake::Args),
+    /// Merge the layers of a chunked bake into the layer one whole-range bake writes.
+    Stitch(cli::stitch::Args),
     /// Measure binding and per-frame solve times on the hand fixtures (the paper's Table 1).
     Bench(cli::bench::Args),
     /// Run the deformer HTTP service.
@@ -35,6 +37,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
+        Command::Stitch(args) => cli::stitch::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Serve(args) => cli::serve::run(&args),
     };

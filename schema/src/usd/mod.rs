@@ -18,7 +18,10 @@ mod error;
 mod read;
 mod value;
 mod write;
-pub use write::{LayerFormat, PrimPoints, WriteError, encode_points_overrides, write_points_overrides};
+pub use write::{
+    LayerFormat, PointsOverrides, PrimPoints, ReadOverridesError, WriteError, decode_points_overrides, encode_points_overrides,
+    read_points_overrides, write_points_overrides,
+};
 
 pub use error::UsdError;
 pub use read::Stage;

@@ -1,6 +1,8 @@
 //! Writing the bake output (schema/README.md, "Bake output"): a layer of
 //! `over` opinions carrying the deformed `points` time samples of each mesh at
-//! its composed path, meant to be sublayered above the input.
+//! its composed path, meant to be sublayered above the input. The same layer
+//! is read back by [`read_points_overrides`] (for `curvenet stitch`), which
+//! refuses anything the writer would not have written.
 //!
 //! ```no_run
 //! use curvenet_schema::usd::{PrimPoints, write_points_overrides};
@@ -202,15 +204,20 @@ fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-/// `DIR/.NAME.tmp-PID-N-NANOS`: unique per process (counter) and across
-/// processes (pid, clock), hidden, and in the output's directory so the
-/// rename stays on one file system.
+/// `DIR/.NAME.tmp-PID-N-RANDOM`: unique per process (counter) and across
+/// processes, also on different hosts writing to shared storage (pid and 64
+/// random bits from the OS-seeded `RandomState`), hidden (so a farm's glob of
+/// finished chunks skips it), and in the output's directory so the rename
+/// stays on one file system. Created with `create_new`, so a clash fails
+/// (as I/O, worth retrying) instead of sharing a file.
 fn temp_path(path: &Path) -> PathBuf {
+    use std::hash::{BuildHasher as _, Hasher as _};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.subsec_nanos());
+    let mut random = std::hash::RandomState::new().build_hasher();
+    random.write_u64(n);
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "layer".into());
-    parent_dir(path).join(format!(".{name}.tmp-{}-{n}-{nanos}", std::process::id()))
+    parent_dir(path).join(format!(".{name}.tmp-{}-{n}-{:016x}", std::process::id(), random.finish()))
 }
 
 struct RemoveOnDrop(Option<PathBuf>);
@@ -221,6 +228,242 @@ impl Drop for RemoveOnDrop {
             let _ = std::fs::remove_file(p);
         }
     }
+}
+
+/// A bake layer read back: the arguments [`write_points_overrides`] was
+/// given, so writing them again writes the same bytes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointsOverrides {
+    /// Prims with `points` samples in the layer's namespace order (depth
+    /// first, children in authored order), samples sorted by time, every
+    /// sample of a prim holding the same number of points.
+    pub prims: Vec<PrimPoints>,
+    /// The layer's `startTimeCode` and `endTimeCode`.
+    pub time_range: (f64, f64),
+    /// The layer's `doc` string.
+    pub doc: String,
+}
+
+/// Why a bake layer could not be read back.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReadOverridesError {
+    /// Opening or reading the file failed.
+    #[error("cannot read {path}: {source}")]
+    Io { path: String, source: std::io::Error },
+    /// The file is not a USD layer openusd can decode.
+    #[error("{path}: cannot decode the layer: {message}")]
+    Decode { path: String, message: String },
+    /// The layer holds something the bake writer never writes; `spec` is the
+    /// offending spec path (`/` for the layer metadata).
+    #[error("{path}: not a curvenet bake layer: {spec}: {problem}")]
+    NotABake { path: String, spec: String, problem: String },
+}
+
+/// Reads a layer written by [`write_points_overrides`] (either format, by
+/// its content). Anything else - a `def`, another attribute or field, a
+/// sample that is not `point3f[]`, a prim whose samples disagree on the
+/// number of points, a sample outside startTimeCode..endTimeCode - is
+/// [`ReadOverridesError::NotABake`], naming the spec.
+pub fn read_points_overrides(path: &Path) -> Result<PointsOverrides, ReadOverridesError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| ReadOverridesError::Io { path: name.clone(), source })?;
+    decode_points_overrides(&name, bytes)
+}
+
+/// [`read_points_overrides`] on bytes in hand; `name` names them in errors.
+pub fn decode_points_overrides(name: &str, bytes: Vec<u8>) -> Result<PointsOverrides, ReadOverridesError> {
+    let layer = sdf::Layer::from_bytes(name, bytes)
+        .map_err(|e| ReadOverridesError::Decode { path: name.to_string(), message: e.to_string() })?;
+    points_overrides_from_data(name, layer.data())
+}
+
+/// The inverse of [`points_overrides_data`], checking every spec and field.
+fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Result<PointsOverrides, ReadOverridesError> {
+    let not_a_bake = |spec: &sdf::Path, problem: String| ReadOverridesError::NotABake {
+        path: name.to_string(),
+        spec: spec.as_str().to_string(),
+        problem,
+    };
+    let field = |spec: &sdf::Path, key: &str| {
+        data.try_field(spec, key)
+            .map_err(|e| not_a_bake(spec, format!("cannot read {key}: {e}")))
+            .map(|v| v.map(std::borrow::Cow::into_owned))
+    };
+    let only_fields = |spec: &sdf::Path, allowed: &[&str]| {
+        let fields = data.list_fields(spec).unwrap_or_default();
+        match fields.iter().find(|f| !allowed.contains(&f.as_str())) {
+            Some(f) => Err(not_a_bake(spec, format!("authors {f}, which a bake never writes"))),
+            None => Ok(()),
+        }
+    };
+    let children_key = sdf::ChildrenKey::PrimChildren.as_str();
+    let properties_key = sdf::ChildrenKey::PropertyChildren.as_str();
+    let names = |spec: &sdf::Path, key: &str| -> Result<Vec<String>, ReadOverridesError> {
+        match field(spec, key)? {
+            None => Ok(Vec::new()),
+            Some(Value::TokenVec(v)) => Ok(v.iter().map(|t| t.as_str().to_string()).collect()),
+            Some(v) => Err(not_a_bake(spec, format!("{key} is {v:?}, not a token list"))),
+        }
+    };
+
+    // The layer metadata.
+    let root = sdf::Path::abs_root();
+    let doc_key = sdf::FieldKey::Documentation.as_str();
+    let start_key = sdf::FieldKey::StartTimeCode.as_str();
+    let end_key = sdf::FieldKey::EndTimeCode.as_str();
+    if data.spec_type(&root) != Some(sdf::SpecType::PseudoRoot) {
+        return Err(not_a_bake(&root, "the layer has no pseudo-root".into()));
+    }
+    only_fields(&root, &[doc_key, start_key, end_key, children_key])?;
+    let doc = match field(&root, doc_key)? {
+        Some(Value::String(s)) => s,
+        Some(v) => return Err(not_a_bake(&root, format!("doc is {v:?}, not a string"))),
+        None => return Err(not_a_bake(&root, "no doc string (a bake always writes one)".into())),
+    };
+    let time = |key: &str| match field(&root, key)? {
+        Some(Value::Double(t)) if t.is_finite() => Ok(t),
+        Some(v) => Err(not_a_bake(&root, format!("{key} is {v:?}, not a finite time code"))),
+        None => Err(not_a_bake(&root, format!("no {key} (a bake always writes one)"))),
+    };
+    let time_range = (time(start_key)?, time(end_key)?);
+    if !(time_range.0 <= time_range.1) {
+        return Err(not_a_bake(&root, format!("startTimeCode {} is after endTimeCode {}", time_range.0, time_range.1)));
+    }
+
+    // Every spec: prims (over) and their `points` attributes, nothing else.
+    let mut points_attrs = 0usize;
+    for spec in data.spec_paths() {
+        match data.spec_type(&spec) {
+            Some(sdf::SpecType::PseudoRoot) => {}
+            Some(sdf::SpecType::Prim) => {
+                only_fields(&spec, &[sdf::FieldKey::Specifier.as_str(), children_key, properties_key])?;
+                match field(&spec, sdf::FieldKey::Specifier.as_str())? {
+                    Some(Value::Specifier(sdf::Specifier::Over)) => {}
+                    Some(v) => return Err(not_a_bake(&spec, format!("specifier {v:?}: a bake holds over opinions only"))),
+                    None => return Err(not_a_bake(&spec, "no specifier: a bake holds over opinions only".into())),
+                }
+            }
+            Some(sdf::SpecType::Attribute) if spec.split_property().is_some_and(|(_, name)| name == POINTS) => points_attrs += 1,
+            Some(sdf::SpecType::Attribute) => {
+                let attr = spec.split_property().map_or("", |(_, name)| name);
+                return Err(not_a_bake(&spec, format!("attribute {attr}: a bake writes {POINTS} only")));
+            }
+            other => return Err(not_a_bake(&spec, format!("a {other:?} spec: a bake holds prims and their points only"))),
+        }
+    }
+
+    // The prims in namespace order, and each one's points samples.
+    let mut prims = Vec::new();
+    let mut reached = 0usize;
+    let mut stack = vec![root.clone()];
+    while let Some(parent) = stack.pop() {
+        let children = names(&parent, children_key)?;
+        for child in children.iter().rev() {
+            let path = parent
+                .append_path(child.as_str())
+                .map_err(|e| not_a_bake(&parent, format!("child {child:?} is not a prim name: {e}")))?;
+            if data.spec_type(&path) != Some(sdf::SpecType::Prim) {
+                return Err(not_a_bake(&path, "listed as a child but has no prim spec".into()));
+            }
+            stack.push(path);
+        }
+        if parent.is_abs_root() {
+            continue;
+        }
+        reached += 1;
+        let properties = names(&parent, properties_key)?;
+        match properties.as_slice() {
+            [] if children.is_empty() => return Err(not_a_bake(&parent, "an over with neither points nor children".into())),
+            [] => {}
+            [p] if p == POINTS => prims.push(read_points(name, data, &parent, time_range)?),
+            _ => return Err(not_a_bake(&parent, format!("properties {properties:?}: a bake writes {POINTS} only"))),
+        }
+    }
+    let prim_specs = data.spec_paths().iter().filter(|p| data.spec_type(p) == Some(sdf::SpecType::Prim)).count();
+    if reached != prim_specs || points_attrs != prims.len() {
+        return Err(not_a_bake(&root, "prim or property specs that no parent lists as children".into()));
+    }
+    if prims.is_empty() {
+        return Err(not_a_bake(&root, format!("no prim with {POINTS} samples")));
+    }
+    Ok(PointsOverrides { prims, time_range, doc })
+}
+
+/// One prim's `points` attribute as the writer authors it.
+fn read_points(name: &str, data: &dyn sdf::AbstractData, prim: &sdf::Path, range: (f64, f64)) -> Result<PrimPoints, ReadOverridesError> {
+    let attr = prim.append_property(POINTS).map_err(|e| ReadOverridesError::NotABake {
+        path: name.to_string(),
+        spec: prim.as_str().to_string(),
+        problem: e.to_string(),
+    })?;
+    let not_a_bake = |problem: String| ReadOverridesError::NotABake {
+        path: name.to_string(),
+        spec: attr.as_str().to_string(),
+        problem,
+    };
+    if data.spec_type(&attr) != Some(sdf::SpecType::Attribute) {
+        return Err(not_a_bake("listed as a property but has no attribute spec".into()));
+    }
+    let keys = [
+        sdf::FieldKey::TypeName.as_str(),
+        sdf::FieldKey::Variability.as_str(),
+        sdf::FieldKey::Custom.as_str(),
+        sdf::FieldKey::TimeSamples.as_str(),
+    ];
+    if let Some(f) = data.list_fields(&attr).unwrap_or_default().iter().find(|f| !keys.contains(&f.as_str())) {
+        return Err(not_a_bake(format!("authors {f}, which a bake never writes")));
+    }
+    let field = |key: &str| {
+        data.try_field(&attr, key)
+            .map_err(|e| not_a_bake(format!("cannot read {key}: {e}")))
+            .map(|v| v.map(std::borrow::Cow::into_owned))
+    };
+    match field(keys[0])? {
+        Some(Value::Token(t)) if t.as_str() == "point3f[]" => {}
+        other => return Err(not_a_bake(format!("type {other:?}, not point3f[]"))),
+    }
+    if let Some(v) = field(keys[1])?
+        && v != Value::Variability(sdf::Variability::Varying)
+    {
+        return Err(not_a_bake(format!("variability {v:?}, not varying")));
+    }
+    if let Some(v) = field(keys[2])?
+        && v != Value::Bool(false)
+    {
+        return Err(not_a_bake(format!("custom is {v:?}")));
+    }
+    let map = match field(keys[3])? {
+        Some(Value::TimeSamples(map)) => map,
+        Some(v) => return Err(not_a_bake(format!("timeSamples is {v:?}"))),
+        None => return Err(not_a_bake("no time samples".into())),
+    };
+    let mut samples: Vec<(f64, Vec<[f32; 3]>)> = Vec::with_capacity(map.len());
+    for (t, value) in map {
+        if !(t >= range.0 && t <= range.1) {
+            return Err(not_a_bake(format!("a sample at time code {t}, outside startTimeCode..endTimeCode {}..{}", range.0, range.1)));
+        }
+        let Value::Vec3fVec(points) = value else {
+            return Err(not_a_bake(format!("the sample at time code {t} is not point3f[]")));
+        };
+        samples.push((t, points.into_iter().map(<[f32; 3]>::from).collect()));
+    }
+    if samples.is_empty() {
+        return Err(not_a_bake("no time samples".into()));
+    }
+    samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some(w) = samples.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(not_a_bake(format!("two samples at time code {}", w[0].0)));
+    }
+    if let Some((t, p)) = samples.iter().find(|(_, p)| p.len() != samples[0].1.len()) {
+        return Err(not_a_bake(format!(
+            "{} points at time code {t} but {} at time code {}",
+            p.len(),
+            samples[0].1.len(),
+            samples[0].0
+        )));
+    }
+    Ok(PrimPoints { prim: prim.as_str().to_string(), samples })
 }
 
 #[cfg(test)]
@@ -295,5 +538,47 @@ mod tests {
         assert!(!e.is_io());
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn layers_read_back_as_written_and_rewrite_to_the_same_bytes() {
+        let prims = vec![
+            PrimPoints { prim: "/B/Mesh".into(), samples: vec![(3.0, vec![[1.5, -2.0, 0.25]; 4]), (4.0, vec![[0.0; 3]; 4])] },
+            PrimPoints { prim: "/A/X/Mesh".into(), samples: vec![(3.0, vec![[1e-7, 2.0, 3.0]]), (4.0, vec![[f32::MAX, -0.0, 1.0]])] },
+        ];
+        for format in [LayerFormat::Usda, LayerFormat::Usdc] {
+            let bytes = encode_points_overrides(prims.clone(), (3.0, 4.0), "a doc \"quoted\"", format).unwrap();
+            let read = decode_points_overrides("mem", bytes.clone()).unwrap();
+            assert_eq!(read.prims, prims, "{format:?}");
+            assert_eq!(read.time_range, (3.0, 4.0));
+            assert_eq!(read.doc, "a doc \"quoted\"");
+            let again = encode_points_overrides(read.prims, read.time_range, &read.doc, format).unwrap();
+            assert!(again == bytes, "{format:?}: the layer read back writes different bytes");
+        }
+    }
+
+    #[test]
+    fn layers_a_bake_never_writes_are_refused_naming_the_spec() {
+        let good = String::from_utf8(encode_points_overrides(prims(), (1.0, 2.0), "d", LayerFormat::Usda).unwrap()).unwrap();
+        let refused = |text: &str, spec: &str, problem: &str| {
+            let e = decode_points_overrides("x.usda", text.as_bytes().to_vec()).unwrap_err();
+            let ReadOverridesError::NotABake { path, spec: s, problem: p } = &e else { panic!("{e}") };
+            assert_eq!((path.as_str(), s.as_str()), ("x.usda", spec), "{e}\n{text}");
+            assert!(p.contains(problem), "{e}");
+        };
+        refused(&good.replacen("over \"Mesh\"", "def Mesh \"Mesh\"", 1), "/A/B/Mesh", "type");
+        refused(&good.replacen("over \"B\"", "def \"B\"", 1), "/A/B", "specifier");
+        refused(&good.replacen("startTimeCode = 1.0", "startTimeCode = 1.0\n    defaultPrim = \"A\"", 1), "/", "defaultPrim");
+        refused(&good.replacen("point3f[] points", "float3[] extent = [(0, 0, 0)]\n        point3f[] points", 1), "/A/B/Mesh.extent", "extent");
+        refused(&good.replacen("endTimeCode = 2.0", "endTimeCode = 1.5", 1), "/A/B/Mesh.points", "outside");
+        // The sample at 2 loses its first point.
+        let at = good.find("2.0: [").expect("a sample at 2") + "2.0: [".len();
+        let end = at + good[at..].find("), ").unwrap() + "), ".len();
+        refused(&format!("{}{}", &good[..at], &good[end..]), "/A/B/Mesh.points", "1 points at time code 2");
+        refused(&good.replacen("point3f[] points", "normal3f[] points", 2), "/A/B/Mesh.points", "not point3f[]");
+        let e = decode_points_overrides("y.usda", b"not usd".to_vec()).unwrap_err();
+        assert!(matches!(e, ReadOverridesError::Decode { .. }) && e.to_string().starts_with("y.usda: "), "{e}");
+        let e = read_points_overrides(Path::new("/no/such/bake.usdc")).unwrap_err();
+        assert!(matches!(&e, ReadOverridesError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound), "{e}");
     }
 }

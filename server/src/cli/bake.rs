@@ -207,14 +207,15 @@ pub fn run(args: &Args) -> CliResult {
 
     let t_write = Instant::now();
     let range = (frames[0], frames[frames.len() - 1]);
+    // The doc names no frames (startTimeCode/endTimeCode do): chunks of one
+    // shot then carry the same doc, and `curvenet stitch` keeps it, so the
+    // stitched layer is byte for byte the whole-range bake.
     let doc = format!(
-        "Baked by curvenet {} (`curvenet bake`) from {}: the deformed points of {} over time codes {}..{}, \
-         as over opinions only. Sublayer above (stronger than) the input.",
+        "Baked by curvenet {} (`curvenet bake`) from {}: the deformed points of {} from startTimeCode to \
+         endTimeCode, as over opinions only. Sublayer above (stronger than) the input.",
         env!("CARGO_PKG_VERSION"),
         args.input.display(),
         jobs.iter().map(|j| j.mesh.path.as_str()).collect::<Vec<_>>().join(", "),
-        range.0,
-        range.1
     );
     let prims = jobs.iter().zip(baked).map(|(j, samples)| PrimPoints { prim: j.mesh.path.clone(), samples }).collect();
     write_points_overrides(&args.out, prims, range, &doc).map_err(write_error)?;

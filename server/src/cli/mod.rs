@@ -4,6 +4,7 @@ pub mod bake;
 pub mod bench;
 pub mod inspect;
 pub mod serve;
+pub mod stitch;
 
 /// A command-line failure. Bad input (exit 2) is kept apart from failures
 /// that may succeed on retry (exit 75, EX_TEMPFAIL), so a farm retries only
