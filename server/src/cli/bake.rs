@@ -137,7 +137,7 @@ pub fn run(args: &Args) -> CliResult {
     let started = Instant::now();
     // Cheap checks first, so a bad command fails before any work.
     LayerFormat::from_path(&args.out).map_err(write_error)?;
-    check_output_dir(&args.out)?;
+    super::check_output_dir(&args.out)?;
     if same_file(&args.input, &args.out) {
         return Err(CliError::Input(format!("{}: the output would replace the input", args.out.display())));
     }
@@ -147,19 +147,7 @@ pub fn run(args: &Args) -> CliResult {
         .map_err(|e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))))?;
 
     let stage = Stage::open(&args.input)?;
-    let meshes = stage.deformed_meshes()?;
-    if meshes.is_empty() {
-        return Err(CliError::Input(format!(
-            "{}: no Mesh has rel curvenet:curvenets, so there is nothing to bake",
-            stage.path()
-        )));
-    }
-    let mut inputs = Vec::with_capacity(meshes.len());
-    for mesh in meshes {
-        let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
-        let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
-        inputs.push((mesh, nets, reads_rest));
-    }
+    let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs)?;
 
     let t_bind = Instant::now();
@@ -245,7 +233,7 @@ pub fn run(args: &Args) -> CliResult {
 
 /// The frames to bake: `--frames`, else the stage's time-code range, else
 /// the union of the time samples of the meshes' points and curvenets' pools.
-pub(super) fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[(MeshData, Vec<CurvenetData>, bool)]) -> CliResult<Vec<f64>> {
+pub(super) fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[super::DeformedMesh]) -> CliResult<Vec<f64>> {
     if let Some(r) = requested {
         return Ok((r.first..=r.last).map(|t| t as f64).collect());
     }
@@ -459,23 +447,6 @@ impl Progress {
         if self.last_draw.is_some() {
             eprint!("\r\x1b[K");
         }
-    }
-}
-
-/// Fails (exit 75, like every failure to write the output) when OUTPUT's
-/// directory does not exist, before any work is done.
-fn check_output_dir(out: &Path) -> CliResult {
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    match std::fs::metadata(dir) {
-        Ok(m) if m.is_dir() => Ok(()),
-        Ok(_) => Err(CliError::Io {
-            context: format!("cannot write {}", out.display()),
-            source: std::io::Error::new(std::io::ErrorKind::NotADirectory, format!("{} is not a directory", dir.display())),
-        }),
-        Err(source) => Err(CliError::Io { context: format!("cannot write {}: directory {}", out.display(), dir.display()), source }),
     }
 }
 

@@ -78,3 +78,43 @@ pub fn bind_mesh(
 pub fn net_list(nets: &[curvenet_schema::CurvenetData]) -> String {
     nets.iter().map(|n| n.path.as_str()).collect::<Vec<_>>().join(", ")
 }
+
+/// A deformed mesh of a stage with its curvenets, and whether its rest pose
+/// must be read per frame (`points` animated or not the projection pose).
+pub type DeformedMesh = (curvenet_schema::MeshData, Vec<curvenet_schema::CurvenetData>, bool);
+
+/// Every mesh of `stage` with `rel curvenet:curvenets`, with its curvenets;
+/// no such mesh is bad input ("nothing to {purpose}").
+pub fn deformed_meshes(stage: &curvenet_schema::usd::Stage, purpose: &str) -> CliResult<Vec<DeformedMesh>> {
+    let meshes = stage.deformed_meshes()?;
+    if meshes.is_empty() {
+        return Err(CliError::Input(format!(
+            "{}: no Mesh has rel curvenet:curvenets, so there is nothing to {purpose}",
+            stage.path()
+        )));
+    }
+    let mut inputs = Vec::with_capacity(meshes.len());
+    for mesh in meshes {
+        let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+        let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
+        inputs.push((mesh, nets, reads_rest));
+    }
+    Ok(inputs)
+}
+
+/// Fails (exit 75, like every failure to write an output) when `out`'s
+/// directory does not exist, before any work is done.
+pub fn check_output_dir(out: &std::path::Path) -> CliResult {
+    let dir = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Ok(_) => Err(CliError::Io {
+            context: format!("cannot write {}", out.display()),
+            source: std::io::Error::new(std::io::ErrorKind::NotADirectory, format!("{} is not a directory", dir.display())),
+        }),
+        Err(source) => Err(CliError::Io { context: format!("cannot write {}: directory {}", out.display(), dir.display()), source }),
+    }
+}

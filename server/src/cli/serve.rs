@@ -215,19 +215,7 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
         .spawn(move || {
             let opened = (|| -> CliResult<(Stage, Opened)> {
                 let stage = Stage::open(&owned)?;
-                let meshes = stage.deformed_meshes()?;
-                if meshes.is_empty() {
-                    return Err(CliError::Input(format!(
-                        "{}: no Mesh has rel curvenet:curvenets, so there is nothing to view",
-                        stage.path()
-                    )));
-                }
-                let mut inputs = Vec::with_capacity(meshes.len());
-                for mesh in meshes {
-                    let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
-                    let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
-                    inputs.push((mesh, nets, reads_rest));
-                }
+                let inputs = super::deformed_meshes(&stage, "view")?;
                 let animated = stage.time_code_range().is_some()
                     || inputs.iter().any(|(m, nets, _)| !m.rest_sample_times.is_empty() || nets.iter().any(|n| !n.sample_times.is_empty()));
                 let times = if animated { super::bake::frames(&stage, None, &inputs)? } else { vec![0.0] };

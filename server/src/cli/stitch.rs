@@ -90,7 +90,7 @@ impl Ord for TimeKey {
 pub fn run(args: &Args) -> CliResult {
     let started = Instant::now();
     LayerFormat::from_path(&args.out).map_err(write_error)?;
-    check_output_dir(&args.out)?;
+    super::check_output_dir(&args.out)?;
 
     let chunks: Vec<PointsOverrides> = args.chunks.iter().map(|p| read_chunk(p)).collect::<CliResult<_>>()?;
     let stitched = stitch(&args.chunks, &chunks, args.frames)?;
@@ -261,25 +261,6 @@ fn read_chunk(path: &Path) -> CliResult<PointsOverrides> {
         ReadOverridesError::Io { path, source } => CliError::Input(format!("cannot read chunk {path}: {source}")),
         e => CliError::Input(e.to_string()),
     })
-}
-
-/// Fails (exit 75, like the bake) when OUTPUT's directory does not exist,
-/// before any chunk is read.
-fn check_output_dir(out: &Path) -> CliResult {
-    let dir = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    match std::fs::metadata(dir) {
-        Ok(m) if m.is_dir() => Ok(()),
-        Ok(_) => Err(CliError::Io {
-            context: format!("cannot write {}", out.display()),
-            source: std::io::Error::new(std::io::ErrorKind::NotADirectory, format!("{} is not a directory", dir.display())),
-        }),
-        Err(source) => {
-            Err(CliError::Io { context: format!("cannot write {}: directory {}", out.display(), dir.display()), source })
-        }
-    }
 }
 
 fn write_error(e: WriteError) -> CliError {
