@@ -30,6 +30,8 @@
 //! header with spaces to a multiple of 4 bytes so the arrays are aligned.
 
 use serde::{Deserialize, Serialize};
+
+use crate::{CurvenetData, MeshData};
 use utoipa::ToSchema;
 
 /// The default samples per mean mesh edge length of a curvenet
@@ -65,6 +67,35 @@ pub struct BindingRequest {
     pub blend_shapes: Vec<BlendShapeSpec>,
     #[serde(default)]
     pub options: BindingOptions,
+}
+
+impl BindingRequest {
+    /// The request for `mesh` of a stage bound to its curvenets `nets` (in
+    /// `mesh.curvenets` order), with the mesh's blend shapes and default
+    /// options: what `curvenet serve --open-stage` posts, and what a client
+    /// reading the stage itself would send.
+    pub fn from_stage(mesh: &MeshData, nets: &[CurvenetData]) -> Self {
+        Self {
+            face_vertex_counts: mesh.face_vertex_counts.clone(),
+            face_vertex_indices: mesh.face_vertex_indices.clone(),
+            projection_points: mesh.projection_points.clone(),
+            curvenets: nets
+                .iter()
+                .map(|n| CurvenetSpec { pool: n.pool.clone(), splines: n.splines.clone(), sample_density: n.sample_density })
+                .collect(),
+            blend_shapes: mesh
+                .blend_shapes
+                .iter()
+                .map(|s| BlendShapeSpec {
+                    name: Some(s.name.clone()),
+                    offsets: s.offsets.clone(),
+                    point_indices: s.point_indices.clone(),
+                    inbetweens: s.inbetweens.iter().map(|i| InbetweenSpec { weight: i.weight, offsets: i.offsets.clone() }).collect(),
+                })
+                .collect(),
+            options: BindingOptions::default(),
+        }
+    }
 }
 
 /// One curvenet: a pool of control points and cubic Bézier splines indexing it.

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
-use curvenet_schema::wire::{BindingRequest, BindingResponse, CurvenetSpec};
+use curvenet_schema::wire::{BindingRequest, BindingResponse};
 use curvenet_server::{AppState, Config};
 
 /// Distinct poses cycled through by the clients.
@@ -56,22 +56,8 @@ fn request(mesh: &str) -> BindingRequest {
     let path = ["usdc", "usda"].iter().map(|e| dir.join(format!("{mesh}.{e}"))).find(|p| p.exists()).expect("the hand fixture");
     let stage = Stage::open(&path).unwrap();
     let m = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
-    let curvenets = m
-        .curvenets
-        .iter()
-        .map(|p| {
-            let c = stage.curvenet(p).unwrap();
-            CurvenetSpec { pool: c.pool, splines: c.splines, sample_density: c.sample_density }
-        })
-        .collect();
-    BindingRequest {
-        face_vertex_counts: m.face_vertex_counts,
-        face_vertex_indices: m.face_vertex_indices,
-        projection_points: m.projection_points,
-        curvenets,
-        blend_shapes: Vec::new(),
-        options: Default::default(),
-    }
+    let nets: Vec<_> = m.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
+    BindingRequest::from_stage(&m, &nets)
 }
 
 /// Pose `i`: the control points beyond 55 % of the pool's y extent curl

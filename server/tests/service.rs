@@ -9,7 +9,7 @@ use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
 use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
-use curvenet_schema::wire::{BindingRequest, BindingResponse, CurvenetSpec, FrameRequest};
+use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
 use curvenet_server::{AppState, BakeJob, Baker, Code, Config, app};
 use serde_json::{Value, json};
 use tower::ServiceExt as _;
@@ -27,22 +27,8 @@ fn hand() -> &'static BindingRequest {
 pub fn request_from_stage(path: &std::path::Path) -> BindingRequest {
     let stage = Stage::open(path).unwrap();
     let mesh = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
-    let curvenets = mesh
-        .curvenets
-        .iter()
-        .map(|p| {
-            let c = stage.curvenet(p).unwrap();
-            CurvenetSpec { pool: c.pool, splines: c.splines, sample_density: c.sample_density }
-        })
-        .collect();
-    BindingRequest {
-        face_vertex_counts: mesh.face_vertex_counts,
-        face_vertex_indices: mesh.face_vertex_indices,
-        projection_points: mesh.projection_points,
-        curvenets,
-        blend_shapes: Vec::new(),
-        options: Default::default(),
-    }
+    let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
+    BindingRequest::from_stage(&mesh, &nets)
 }
 
 /// The same binding computed in-process.

@@ -10,7 +10,7 @@ use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
 use curvenet_schema::usd::Stage;
-use curvenet_schema::wire::{BindingRequest, CurvenetSpec, FrameRequest};
+use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
 use serde_json::{Value, json};
 use tower::ServiceExt as _;
@@ -19,22 +19,8 @@ fn hand() -> BindingRequest {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/hand/hand_1k4.usda");
     let stage = Stage::open(&path).unwrap();
     let mesh = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
-    let curvenets = mesh
-        .curvenets
-        .iter()
-        .map(|p| {
-            let c = stage.curvenet(p).unwrap();
-            CurvenetSpec { pool: c.pool, splines: c.splines, sample_density: c.sample_density }
-        })
-        .collect();
-    BindingRequest {
-        face_vertex_counts: mesh.face_vertex_counts,
-        face_vertex_indices: mesh.face_vertex_indices,
-        projection_points: mesh.projection_points,
-        curvenets,
-        blend_shapes: Vec::new(),
-        options: Default::default(),
-    }
+    let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
+    BindingRequest::from_stage(&mesh, &nets)
 }
 
 fn state(token: Option<&str>) -> AppState {

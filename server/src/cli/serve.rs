@@ -11,7 +11,7 @@ use std::time::Duration;
 
 use clap::Parser as _;
 use curvenet_schema::usd::Stage;
-use curvenet_schema::wire::{BindingOptions, BindingRequest, BlendShapeSpec, CurvenetSpec, FrameRequest, InbetweenSpec};
+use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_schema::{CurvenetData, MeshData};
 use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config, FrameSource, ViewerStage};
 
@@ -261,33 +261,9 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 rx.recv().map_err(|_| "the stage reader has stopped".to_string())?
             });
             let curvenets = nets.iter().map(|n| n.path.clone()).collect();
-            ViewerStage::new(name.clone(), mesh.path.clone(), curvenets, times.clone(), binding_request(&mesh, &nets), frame)
+            ViewerStage::new(name.clone(), mesh.path.clone(), curvenets, times.clone(), BindingRequest::from_stage(&mesh, &nets), frame)
         })
         .collect())
-}
-
-/// The service's binding request for a mesh of a stage (default options).
-pub fn binding_request(mesh: &MeshData, nets: &[CurvenetData]) -> BindingRequest {
-    BindingRequest {
-        face_vertex_counts: mesh.face_vertex_counts.clone(),
-        face_vertex_indices: mesh.face_vertex_indices.clone(),
-        projection_points: mesh.projection_points.clone(),
-        curvenets: nets
-            .iter()
-            .map(|n| CurvenetSpec { pool: n.pool.clone(), splines: n.splines.clone(), sample_density: n.sample_density })
-            .collect(),
-        blend_shapes: mesh
-            .blend_shapes
-            .iter()
-            .map(|s| BlendShapeSpec {
-                name: Some(s.name.clone()),
-                offsets: s.offsets.clone(),
-                point_indices: s.point_indices.clone(),
-                inbetweens: s.inbetweens.iter().map(|i| InbetweenSpec { weight: i.weight, offsets: i.offsets.clone() }).collect(),
-            })
-            .collect(),
-        options: BindingOptions::default(),
-    }
 }
 
 /// One mesh's frame at `time`, as the bake reads it: the posed pools (none
