@@ -8,26 +8,12 @@ use std::process::{Command, Output};
 
 use curvenet_schema::usd::{PrimPoints, write_points_overrides};
 
-const SHOT: &str = "fixtures/shots/hand_wave/shot.usda";
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
-}
-
-fn curvenet(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_curvenet")).args(args).current_dir(repo()).output().expect("runs")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
+mod common;
+use common::{SHOT, curvenet, repo, stderr};
 
 /// A fresh, empty directory for one test.
 fn temp_dir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("curvenet-stitch-test-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::temp_dir("stitch", tag)
 }
 
 fn dir_names(dir: &Path) -> Vec<String> {
