@@ -43,7 +43,8 @@ print(json.dumps(out))
 "#;
     let stage = repo_root().join("fixtures/shots/hand_wave/shot.usda");
     let weights = format!("{:?}", WEIGHTS);
-    let out = std::process::Command::new(python).args(["-c", script, stage.to_str().unwrap(), &weights]).output().unwrap();
+    let out =
+        std::process::Command::new(python).args(["-c", script, stage.to_str().unwrap(), &weights]).output().unwrap();
     assert!(out.status.success(), "usd-core: {}", String::from_utf8_lossy(&out.stderr));
     let v: Vec<Vec<Vec<f64>>> = serde_json::from_slice(&out.stdout).unwrap();
     v.into_iter().map(|pts| pts.into_iter().map(|p| [p[0], p[1], p[2]]).collect()).collect()
@@ -93,7 +94,11 @@ fn sculpts_move_with_the_surface_and_weight_zero_changes_nothing() {
     let want: Vec<[f64; 3]> = sculpted.iter().map(rot).collect();
     let err = max_distance(&out, &want);
     let size = max_distance(&sculpted, &b.mesh.projection_points);
-    eprintln!("sculpt of {:.2e} after a rigid motion: off by {:.2e} (x diagonal)", size / b.diagonal(), err / b.diagonal());
+    eprintln!(
+        "sculpt of {:.2e} after a rigid motion: off by {:.2e} (x diagonal)",
+        size / b.diagonal(),
+        err / b.diagonal()
+    );
     assert!(size > 1e-3 * b.diagonal());
     assert!(err <= 1e-9 * b.diagonal(), "{err:e}");
 }

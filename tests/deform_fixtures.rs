@@ -4,7 +4,13 @@ use curvenet_e2e::{bind_fixture, max_distance};
 
 #[test]
 fn every_hand_tessellation_binds_and_reproduces_the_neutral_pose() {
-    for rel in ["hand/hand_1k4.usda", "hand/hand_closed.usda", "hand/hand_lowres.usda", "hand/hand_22k.usdc", "hand/hand_94k.usdc"] {
+    for rel in [
+        "hand/hand_1k4.usda",
+        "hand/hand_closed.usda",
+        "hand/hand_lowres.usda",
+        "hand/hand_22k.usdc",
+        "hand/hand_94k.usdc",
+    ] {
         let t = std::time::Instant::now();
         let b = bind_fixture(rel);
         let s = b.binding.stats();
@@ -50,7 +56,8 @@ fn grid_rigid_motion_and_uniform_scaling_carry_the_mesh_alike() {
     eprintln!("grid rigid motion (frame 2, f32 pool): max error {:.3e} x diagonal", err / b.diagonal());
     assert!(err <= 1e-5 * b.diagonal(), "rigid motion (f32) off by {err:e}");
     // Frame 4: uniform scaling by 1.5 about the origin.
-    let pools: Vec<Vec<[f64; 3]>> = b.nets.iter().map(|n| n.pool.iter().map(|p| p.map(|x| 1.5 * x)).collect()).collect();
+    let pools: Vec<Vec<[f64; 3]>> =
+        b.nets.iter().map(|n| n.pool.iter().map(|p| p.map(|x| 1.5 * x)).collect()).collect();
     let want: Vec<[f64; 3]> = rest.iter().map(|p| p.map(|x| 1.5 * x)).collect();
     let err = max_distance(&b.deform(&pools), &want);
     eprintln!("grid scaling: max error {:.3e} x diagonal", err / b.diagonal());
@@ -105,7 +112,10 @@ fn plane_fit(points: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
 }
 
 fn plane_distance(points: &[[f64; 3]], (c, n): ([f64; 3], [f64; 3])) -> f64 {
-    points.iter().map(|p| ((p[0] - c[0]) * n[0] + (p[1] - c[1]) * n[1] + (p[2] - c[2]) * n[2]).abs()).fold(0.0, f64::max)
+    points
+        .iter()
+        .map(|p| ((p[0] - c[0]) * n[0] + (p[1] - c[1]) * n[1] + (p[2] - c[2]) * n[2]).abs())
+        .fold(0.0, f64::max)
 }
 
 #[test]
@@ -162,7 +172,8 @@ fn volume(b: &curvenet_e2e::Bound, points: &[[f64; 3]]) -> f64 {
         let a = points[face[0] as usize];
         for k in 1..face.len() - 1 {
             let (p, q) = (points[face[k] as usize], points[face[k + 1] as usize]);
-            v += a[0] * (p[1] * q[2] - p[2] * q[1]) - a[1] * (p[0] * q[2] - p[2] * q[0]) + a[2] * (p[0] * q[1] - p[1] * q[0]);
+            v += a[0] * (p[1] * q[2] - p[2] * q[1]) - a[1] * (p[0] * q[2] - p[2] * q[0])
+                + a[2] * (p[0] * q[1] - p[1] * q[0]);
         }
     }
     v / 6.0
@@ -200,7 +211,7 @@ fn tessellation_fig_8_three_meshes_deform_alike() {
         .map(|rel| {
             let b = bind_fixture(rel);
             assert_eq!(b.nets[0].pool.len(), pool.len(), "{rel}: the same curvenet");
-            let out = b.deform(&[pool.clone()]);
+            let out = b.deform(std::slice::from_ref(&pool));
             (rel, b, out)
         })
         .collect();
@@ -211,7 +222,13 @@ fn tessellation_fig_8_three_meshes_deform_alike() {
             let rest = one_sided(&a.1.mesh.projection_points, &b.1.topology, &b.1.mesh.projection_points)
                 .max(one_sided(&b.1.mesh.projection_points, &a.1.topology, &a.1.mesh.projection_points));
             let posed = one_sided(&a.2, &b.1.topology, &b.2).max(one_sided(&b.2, &a.1.topology, &a.2));
-            eprintln!("{} vs {}: Hausdorff {:.4} x diagonal posed ({:.4} at rest)", a.0, b.0, posed / diag, rest / diag);
+            eprintln!(
+                "{} vs {}: Hausdorff {:.4} x diagonal posed ({:.4} at rest)",
+                a.0,
+                b.0,
+                posed / diag,
+                rest / diag
+            );
             assert!(posed <= 0.02 * diag, "{} vs {}: {:.4} of the diagonal apart", a.0, b.0, posed / diag);
         }
     }

@@ -25,7 +25,11 @@ fn check_close(what: &str, got: f64, want: f64, failures: &mut Vec<String>) {
 fn every_fixture_reads_back_as_the_manifest_says() {
     let manifest = manifest();
     let stages = manifest["stages"].as_object().expect("stages object");
-    assert!(stages.len() >= 8, "the manifest lists {} stages; expected grid, cylinder, 5 hands and a shot", stages.len());
+    assert!(
+        stages.len() >= 8,
+        "the manifest lists {} stages; expected grid, cylinder, 5 hands and a shot",
+        stages.len()
+    );
     let mut failures = Vec::new();
     let mut checked_samples = 0usize;
     for (rel, want) in stages {
@@ -37,7 +41,9 @@ fn every_fixture_reads_back_as_the_manifest_says() {
                 check_close(&format!("{rel} end"), b, wb, &mut failures);
             }
             (None, None, None) => {}
-            (got, ..) => failures.push(format!("{rel}: time range {got:?}, manifest {} - {}", want["start"], want["end"])),
+            (got, ..) => {
+                failures.push(format!("{rel}: time range {got:?}, manifest {} - {}", want["start"], want["end"]))
+            }
         }
 
         let meshes = stage.deformed_meshes().unwrap_or_else(|e| panic!("{rel}: {e}"));
@@ -57,9 +63,19 @@ fn every_fixture_reads_back_as_the_manifest_says() {
             let topo = index_checksum(mesh.face_vertex_indices.iter().copied())
                 + index_checksum(mesh.face_vertex_counts.iter().copied());
             assert_eq!(topo, w["topology_checksum"].as_i64().unwrap(), "{tag} topology checksum");
-            check_close(&format!("{tag} projection"), points_checksum(&mesh.projection_points), f(&w["projection_checksum"]), &mut failures);
+            check_close(
+                &format!("{tag} projection"),
+                points_checksum(&mesh.projection_points),
+                f(&w["projection_checksum"]),
+                &mut failures,
+            );
             let rest_default = stage.rest_points(mesh, None).unwrap();
-            check_close(&format!("{tag} rest default"), points_checksum(&rest_default), f(&w["rest_default_checksum"]), &mut failures);
+            check_close(
+                &format!("{tag} rest default"),
+                points_checksum(&rest_default),
+                f(&w["rest_default_checksum"]),
+                &mut failures,
+            );
             let samples = w["rest_samples"].as_array().unwrap();
             assert_eq!(mesh.rest_sample_times.len(), samples.len(), "{tag} rest sample count");
             for (t, s) in samples.iter().map(|s| (f(&s[0]), f(&s[1]))) {
@@ -76,7 +92,12 @@ fn every_fixture_reads_back_as_the_manifest_says() {
                 assert_eq!(b.name, wb["name"].as_str().unwrap());
                 assert_eq!(b.prim, wb["prim"].as_str().unwrap());
                 assert_eq!(b.offsets.len() as u64, wb["n_offsets"].as_u64().unwrap());
-                check_close(&format!("{tag} {} offsets", b.name), points_checksum(&b.offsets), f(&wb["offsets_checksum"]), &mut failures);
+                check_close(
+                    &format!("{tag} {} offsets", b.name),
+                    points_checksum(&b.offsets),
+                    f(&wb["offsets_checksum"]),
+                    &mut failures,
+                );
                 let pi = b.point_indices.as_ref().map(|p| index_checksum(p.iter().copied()));
                 assert_eq!(pi, wb["point_indices_checksum"].as_i64(), "{tag} {} pointIndices", b.name);
                 let wi = wb["inbetweens"].as_array().unwrap();
@@ -84,7 +105,12 @@ fn every_fixture_reads_back_as_the_manifest_says() {
                 for (ib, wib) in b.inbetweens.iter().zip(wi) {
                     assert_eq!(ib.name, wib["name"].as_str().unwrap());
                     check_close(&format!("{tag} {} weight", ib.name), ib.weight, f(&wib["weight"]), &mut failures);
-                    check_close(&format!("{tag} {} inbetween", ib.name), points_checksum(&ib.offsets), f(&wib["offsets_checksum"]), &mut failures);
+                    check_close(
+                        &format!("{tag} {} inbetween", ib.name),
+                        points_checksum(&ib.offsets),
+                        f(&wib["offsets_checksum"]),
+                        &mut failures,
+                    );
                 }
             }
             for ws in w["blend_shape_weights"].as_array().unwrap() {
@@ -107,9 +133,18 @@ fn every_fixture_reads_back_as_the_manifest_says() {
             let tag = format!("{rel} {}", net.path);
             assert_eq!(net.pool.len() as u64, w["n_cv"].as_u64().unwrap(), "{tag} n_cv");
             assert_eq!(net.splines.len() as u64, w["n_splines"].as_u64().unwrap(), "{tag} n_splines");
-            assert_eq!(index_checksum(net.splines.iter().flatten().copied()), w["indices_checksum"].as_i64().unwrap(), "{tag}");
+            assert_eq!(
+                index_checksum(net.splines.iter().flatten().copied()),
+                w["indices_checksum"].as_i64().unwrap(),
+                "{tag}"
+            );
             check_close(&format!("{tag} density"), net.sample_density, f(&w["sample_density"]), &mut failures);
-            check_close(&format!("{tag} cv default"), points_checksum(&net.pool), f(&w["cv_default_checksum"]), &mut failures);
+            check_close(
+                &format!("{tag} cv default"),
+                points_checksum(&net.pool),
+                f(&w["cv_default_checksum"]),
+                &mut failures,
+            );
             let samples = w["cv_samples"].as_array().unwrap();
             assert_eq!(net.sample_times.len(), samples.len(), "{tag} cv sample count");
             for (t, s) in samples.iter().map(|s| (f(&s[0]), f(&s[1]))) {

@@ -39,7 +39,8 @@ fn bend(p: [f64; 3]) -> [f64; 3] {
 fn widen_wrist_ring(b: &Bound, tracked: &[[f64; 3]], factor: f64) -> Vec<[f64; 3]> {
     let topo = b.layouts[0].topology();
     let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
-    let mut points: Vec<u32> = topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
+    let mut points: Vec<u32> =
+        topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
     points.sort();
     points.dedup();
     let centre: [f64; 3] =
@@ -70,7 +71,11 @@ fn unarticulated_curvenets_follow_rigid_and_bent_rest_poses_exactly() {
         let moved = max_distance(&rest, &b.mesh.projection_points);
         let out = solve(&b, &[None], Some(&rest));
         let err = max_distance(&out, &rest);
-        eprintln!("{name} rest pose (moves up to {:.3} x diagonal): output = rest to {:.2e} x diagonal", moved / b.diagonal(), err / b.diagonal());
+        eprintln!(
+            "{name} rest pose (moves up to {:.3} x diagonal): output = rest to {:.2e} x diagonal",
+            moved / b.diagonal(),
+            err / b.diagonal()
+        );
         assert!(moved > 0.05 * b.diagonal(), "the {name} rest pose should move the hand");
         assert!(err <= 1e-9 * b.diagonal(), "{name}: output differs from the rest pose by {err:e}");
     }

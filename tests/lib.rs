@@ -50,14 +50,20 @@ pub struct Bound {
 pub fn bind_fixture(rel: &str) -> Bound {
     let stage = Stage::open(fixtures_dir().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"));
     let mesh = stage.deformed_meshes().unwrap().into_iter().next().expect("a deformed mesh");
-    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
+    let topology =
+        PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
     let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
     let layouts: Vec<CurvenetLayout> = nets
         .iter()
         .map(|n| {
             let c = Curvenet::new(&n.splines, &n.pool).unwrap();
-            CurvenetLayout::new(&c, &topology, &mesh.projection_points, &SamplingOptions::default().with_density(n.sample_density))
-                .unwrap_or_else(|e| panic!("{rel} {}: {e}", n.path))
+            CurvenetLayout::new(
+                &c,
+                &topology,
+                &mesh.projection_points,
+                &SamplingOptions::default().with_density(n.sample_density),
+            )
+            .unwrap_or_else(|e| panic!("{rel} {}: {e}", n.path))
         })
         .collect();
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
@@ -69,8 +75,11 @@ pub fn bind_fixture(rel: &str) -> Bound {
 impl Bound {
     /// Deforms with the curvenets posed at `time` (their neutral pools when not articulated).
     pub fn deform_at(&self, time: f64) -> Vec<[f64; 3]> {
-        let pools: Vec<Vec<[f64; 3]>> =
-            self.nets.iter().map(|n| self.stage.posed_pool(n, Some(time)).unwrap().unwrap_or_else(|| n.pool.clone())).collect();
+        let pools: Vec<Vec<[f64; 3]>> = self
+            .nets
+            .iter()
+            .map(|n| self.stage.posed_pool(n, Some(time)).unwrap().unwrap_or_else(|| n.pool.clone()))
+            .collect();
         self.deform(&pools)
     }
 

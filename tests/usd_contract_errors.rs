@@ -91,7 +91,11 @@ fn the_base_stage_reads() {
 
 #[test]
 fn left_handed_meshes_are_read_counter_clockwise() {
-    let path = variant("left.usda", "int[] faceVertexCounts = [3, 3]", "uniform token orientation = \"leftHanded\"\n        int[] faceVertexCounts = [3, 3]");
+    let path = variant(
+        "left.usda",
+        "int[] faceVertexCounts = [3, 3]",
+        "uniform token orientation = \"leftHanded\"\n        int[] faceVertexCounts = [3, 3]",
+    );
     let m = &Stage::open(path).unwrap().deformed_meshes().unwrap()[0];
     assert_eq!(m.face_vertex_indices, [2, 1, 0, 3, 2, 0]);
 }
@@ -112,13 +116,33 @@ fn an_unarticulated_curvenet_has_no_posed_pool() {
 #[test]
 fn curvenet_errors_name_prim_and_attribute() {
     let cases = [
-        ("int[] primvars:curvenet:cv:indices = [0, 1, 2, 3]", "int[] primvars:curvenet:cv:indices = [0, 1, 2, 9]", "primvars:curvenet:cv:indices", "entry 3 is 9"),
-        ("int[] primvars:curvenet:cv:indices = [0, 1, 2, 3]", "int[] primvars:curvenet:cv:indices = [0, 1, -2, 3]", "primvars:curvenet:cv:indices", "entry 2 is -2"),
+        (
+            "int[] primvars:curvenet:cv:indices = [0, 1, 2, 3]",
+            "int[] primvars:curvenet:cv:indices = [0, 1, 2, 9]",
+            "primvars:curvenet:cv:indices",
+            "entry 3 is 9",
+        ),
+        (
+            "int[] primvars:curvenet:cv:indices = [0, 1, 2, 3]",
+            "int[] primvars:curvenet:cv:indices = [0, 1, -2, 3]",
+            "primvars:curvenet:cv:indices",
+            "entry 2 is -2",
+        ),
         ("int[] curveVertexCounts = [4]", "int[] curveVertexCounts = [3]", "curveVertexCounts", "entry 0 is 3"),
-        ("int[] curveVertexCounts = [4]", "int[] curveVertexCounts = [4, 4]", "primvars:curvenet:cv:indices", "4 per spline (2 splines)"),
+        (
+            "int[] curveVertexCounts = [4]",
+            "int[] curveVertexCounts = [4, 4]",
+            "primvars:curvenet:cv:indices",
+            "4 per spline (2 splines)",
+        ),
         ("uniform token basis = \"bezier\"", "uniform token basis = \"bspline\"", "basis", "\"bspline\""),
         ("uniform token wrap = \"nonperiodic\"", "uniform token wrap = \"periodic\"", "wrap", "\"periodic\""),
-        ("uniform float curvenet:sampleDensity = 4", "uniform float curvenet:sampleDensity = -1", "curvenet:sampleDensity", "positive"),
+        (
+            "uniform float curvenet:sampleDensity = 4",
+            "uniform float curvenet:sampleDensity = -1",
+            "curvenet:sampleDensity",
+            "positive",
+        ),
         ("int[] primvars:curvenet:cv:indices = [0, 1, 2, 3]", "", "primvars:curvenet:cv:indices", "missing"),
     ];
     for (k, (from, to, attr, needle)) in cases.iter().enumerate() {
@@ -143,10 +167,30 @@ fn curvenet_errors_name_prim_and_attribute() {
 #[test]
 fn mesh_errors_name_prim_and_attribute() {
     let cases = [
-        ("int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]", "int[] faceVertexIndices = [0, 1, 2, 0, 2, 4]", "faceVertexIndices", "entry 5 is 4"),
-        ("int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]", "int[] faceVertexIndices = [0, 1, 2, 0, 2]", "faceVertexIndices", "faceVertexCounts sum to 6"),
-        ("int[] faceVertexCounts = [3, 3]", "int[] faceVertexCounts.timeSamples = { 1: [3, 3] }", "faceVertexCounts", "time samples"),
-        ("rel curvenet:curvenets = </W/C>", "rel curvenet:curvenets = </W/C>\n        point3f[] primvars:curvenet:projectionPoints = [(0,0,0)]", "primvars:curvenet:projectionPoints", "has 1 points, the mesh has 4"),
+        (
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]",
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2, 4]",
+            "faceVertexIndices",
+            "entry 5 is 4",
+        ),
+        (
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2, 3]",
+            "int[] faceVertexIndices = [0, 1, 2, 0, 2]",
+            "faceVertexIndices",
+            "faceVertexCounts sum to 6",
+        ),
+        (
+            "int[] faceVertexCounts = [3, 3]",
+            "int[] faceVertexCounts.timeSamples = { 1: [3, 3] }",
+            "faceVertexCounts",
+            "time samples",
+        ),
+        (
+            "rel curvenet:curvenets = </W/C>",
+            "rel curvenet:curvenets = </W/C>\n        point3f[] primvars:curvenet:projectionPoints = [(0,0,0)]",
+            "primvars:curvenet:projectionPoints",
+            "has 1 points, the mesh has 4",
+        ),
         ("uniform int[] pointIndices = [2]", "uniform int[] pointIndices = [2, 3]", "offsets", "pointIndices has 2"),
         ("uniform int[] pointIndices = [2]", "uniform int[] pointIndices = [7]", "pointIndices", "entry 0 is 7"),
         ("( weight = 0.5 )", "", "inbetweens:half", "no weight"),
@@ -159,7 +203,9 @@ fn mesh_errors_name_prim_and_attribute() {
         assert!(problem.contains(needle), "case {k}: {problem:?} should mention {needle:?}");
     }
     // A rest-pose sample with the wrong count names the time.
-    let stage = Stage::open(variant("rest.usda", "2: [(0,0,1), (1,0,1), (1,1,1), (0,1,1)] }", "2: [(0,0,1), (1,0,1)] }")).unwrap();
+    let stage =
+        Stage::open(variant("rest.usda", "2: [(0,0,1), (1,0,1), (1,1,1), (0,1,1)] }", "2: [(0,0,1), (1,0,1)] }"))
+            .unwrap();
     let m = &stage.deformed_meshes().unwrap()[0];
     let (_, attribute, problem) = contract(stage.rest_points(m, Some(2.0)).unwrap_err());
     assert_eq!(attribute, "points");
@@ -170,7 +216,9 @@ fn mesh_errors_name_prim_and_attribute() {
     let (prim, attribute, _) = contract(stage.blend_shape_weights(m, Some(2.0)).unwrap_err());
     assert_eq!((prim.as_str(), attribute.as_str()), ("/W/S/A", "blendShapeWeights"));
     // A curvenet relationship that targets a mesh.
-    let stage = Stage::open(variant("target.usda", "rel curvenet:curvenets = </W/C>", "rel curvenet:curvenets = </W/M>")).unwrap();
+    let stage =
+        Stage::open(variant("target.usda", "rel curvenet:curvenets = </W/C>", "rel curvenet:curvenets = </W/M>"))
+            .unwrap();
     let (prim, _, problem) = contract(stage.curvenet("/W/M").unwrap_err());
     assert_eq!(prim, "/W/M");
     assert!(problem.contains("BasisCurves"), "{problem}");
@@ -181,10 +229,8 @@ fn unresolvable_stages_are_refused_at_open() {
     let missing = std::env::temp_dir().join("curvenet-definitely-missing.usda");
     assert!(matches!(Stage::open(&missing), Err(UsdError::Open { .. })));
     let base = write("sub_base.usda", BASE);
-    let top = write(
-        "sub_top.usda",
-        &format!("#usda 1.0\n(\n    subLayers = [@./nope.usda@, @{}@]\n)\n", base.display()),
-    );
+    let top =
+        write("sub_top.usda", &format!("#usda 1.0\n(\n    subLayers = [@./nope.usda@, @{}@]\n)\n", base.display()));
     match Stage::open(&top) {
         Err(UsdError::Open { message, .. }) => assert!(message.contains("nope.usda"), "{message}"),
         other => panic!("expected an open error, got {:?}", other.map(|_| ())),

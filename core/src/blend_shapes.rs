@@ -44,16 +44,25 @@ impl BlendShape {
         if offsets.len() != expected {
             return Err(Error::CountMismatch { what: "blend shape offsets", expected, got: offsets.len() });
         }
-        if let Some(ix) = &point_indices {
-            if let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n_points) {
-                return Err(Error::IndexOutOfRange { what: "blend shape point index", index: i, target: "vertex", value: v, len: n_points });
-            }
+        if let Some(ix) = &point_indices
+            && let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n_points)
+        {
+            return Err(Error::IndexOutOfRange {
+                what: "blend shape point index",
+                index: i,
+                target: "vertex",
+                value: v,
+                len: n_points,
+            });
         }
         check_finite(&offsets, "blend shape offset")?;
         let mut subs: Vec<(f64, Vec<[f64; 3]>)> = vec![(0.0, Vec::new()), (1.0, offsets.clone())];
         for (w, o) in inbetweens {
             if !w.is_finite() || w == 0.0 || w == 1.0 {
-                return Err(Error::InvalidParameter { what: "blend shape inbetween weight (finite, not 0 or 1)", value: w });
+                return Err(Error::InvalidParameter {
+                    what: "blend shape inbetween weight (finite, not 0 or 1)",
+                    value: w,
+                });
             }
             if o.len() != expected {
                 return Err(Error::CountMismatch { what: "blend shape inbetween offsets", expected, got: o.len() });
@@ -119,7 +128,11 @@ impl BlendShapes {
 
     fn check(&self, weights: &[f64], points: &[[f64; 3]]) -> Result<()> {
         if weights.len() != self.shapes.len() {
-            return Err(Error::CountMismatch { what: "blend shape weights", expected: self.shapes.len(), got: weights.len() });
+            return Err(Error::CountMismatch {
+                what: "blend shape weights",
+                expected: self.shapes.len(),
+                got: weights.len(),
+            });
         }
         if let Some((i, &w)) = weights.iter().enumerate().find(|(_, w)| !w.is_finite()) {
             return Err(Error::NonFinite { what: "blend shape weight", index: i, value: [w, 0.0, 0.0] });
@@ -149,7 +162,11 @@ impl BlendShapes {
     pub fn add_deformed(&self, weights: &[f64], gradients: &[[f64; 9]], points: &mut [[f64; 3]]) -> Result<()> {
         self.check(weights, points)?;
         if gradients.len() != self.n_points {
-            return Err(Error::CountMismatch { what: "vertex deformation gradients", expected: self.n_points, got: gradients.len() });
+            return Err(Error::CountMismatch {
+                what: "vertex deformation gradients",
+                expected: self.n_points,
+                got: gradients.len(),
+            });
         }
         for (shape, &w) in self.shapes.iter().zip(weights) {
             shape.for_each_offset(w, |v, o| {
@@ -169,8 +186,13 @@ mod tests {
 
     fn shape() -> BlendShape {
         // Sparse over vertices 1 and 3 of 4; an inbetween at 0.5 that is not half the full shape.
-        BlendShape::new(4, vec![[0.0, 0.0, 1.0], [2.0, 0.0, 0.0]], Some(vec![1, 3]), vec![(0.5, vec![[0.0, 0.0, 0.8], [0.0, 0.0, 0.0]])])
-            .unwrap()
+        BlendShape::new(
+            4,
+            vec![[0.0, 0.0, 1.0], [2.0, 0.0, 0.0]],
+            Some(vec![1, 3]),
+            vec![(0.5, vec![[0.0, 0.0, 0.8], [0.0, 0.0, 0.0]])],
+        )
+        .unwrap()
     }
 
     #[test]
@@ -209,7 +231,7 @@ mod tests {
         ));
         assert!(matches!(BlendShape::new(4, vec![[0.0; 3]; 3], None, vec![]), Err(Error::CountMismatch { .. })));
         let s = BlendShapes::new(4, vec![shape()]);
-        assert!(matches!(s.add_to(&[f64::NAN], &mut vec![[0.0; 3]; 4]), Err(Error::NonFinite { .. })));
-        assert!(matches!(s.add_to(&[1.0, 1.0], &mut vec![[0.0; 3]; 4]), Err(Error::CountMismatch { .. })));
+        assert!(matches!(s.add_to(&[f64::NAN], &mut [[0.0; 3]; 4]), Err(Error::NonFinite { .. })));
+        assert!(matches!(s.add_to(&[1.0, 1.0], &mut [[0.0; 3]; 4]), Err(Error::CountMismatch { .. })));
     }
 }

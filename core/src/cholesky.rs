@@ -17,10 +17,10 @@
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
 };
-use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Par, Side};
 
@@ -64,10 +64,7 @@ impl Cholesky {
 
     fn with_threshold(a: &SymmetricTriplets, threshold: SupernodalThreshold) -> Result<Self> {
         let mat = to_faer(a)?;
-        let params = CholeskySymbolicParams {
-            supernodal_flop_ratio_threshold: threshold,
-            ..Default::default()
-        };
+        let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: threshold, ..Default::default() };
         let symbolic = factorize_symbolic_cholesky(mat.symbolic(), Side::Lower, SymmetricOrdering::Amd, params)
             .map_err(|e| Error::Internal { what: format!("symbolic Cholesky failed: {e:?}") })?;
         Self::numeric(Arc::new(symbolic), &mat)
@@ -101,7 +98,7 @@ impl Cholesky {
             )
             .map_err(|_| Error::NotPositiveDefinite)?;
         let perm: Vec<u32> = match symbolic.perm() {
-            Some(p) => p.arrays().0.iter().map(|&i| i).collect(),
+            Some(p) => p.arrays().0.to_vec(),
             None => (0..n as u32).collect(),
         };
         let (col_ptr, row_idx, values) = match symbolic.raw() {
@@ -120,7 +117,8 @@ impl Cholesky {
                 for k in 0..s.n_supernodes() {
                     let (b, e) = (begin[k] as usize, end[k] as usize);
                     let ncols = e - b;
-                    let rows = &s.row_idx()[s.col_ptr_for_row_idx()[k] as usize..s.col_ptr_for_row_idx()[k + 1] as usize];
+                    let rows =
+                        &s.row_idx()[s.col_ptr_for_row_idx()[k] as usize..s.col_ptr_for_row_idx()[k + 1] as usize];
                     let nrows = ncols + rows.len();
                     let block = &l_values[s.col_ptr_for_val()[k] as usize..s.col_ptr_for_val()[k + 1] as usize];
                     debug_assert_eq!(block.len(), nrows * ncols);
@@ -212,7 +210,9 @@ impl Cholesky {
 
 fn to_faer(a: &SymmetricTriplets) -> Result<SparseColMat<u32, f64>> {
     if let Some(&(r, c, _)) = a.entries.iter().find(|&&(r, c, _)| r < c || r as usize >= a.n) {
-        return Err(Error::Internal { what: format!("triplet ({r}, {c}) is not in the lower triangle of a {0}×{0} matrix", a.n) });
+        return Err(Error::Internal {
+            what: format!("triplet ({r}, {c}) is not in the lower triangle of a {0}×{0} matrix", a.n),
+        });
     }
     if let Some(&(r, c, v)) = a.entries.iter().find(|e| !e.2.is_finite()) {
         return Err(Error::Internal { what: format!("matrix entry ({r}, {c}) is {v}") });
@@ -260,7 +260,8 @@ mod tests {
     }
 
     fn check_solve(a: &SymmetricTriplets, supernodal: bool) {
-        let threshold = if supernodal { SupernodalThreshold::FORCE_SUPERNODAL } else { SupernodalThreshold::FORCE_SIMPLICIAL };
+        let threshold =
+            if supernodal { SupernodalThreshold::FORCE_SUPERNODAL } else { SupernodalThreshold::FORCE_SIMPLICIAL };
         let f = Cholesky::with_threshold(a, threshold).unwrap();
         assert_eq!(f.is_supernodal(), supernodal);
         let x: Vec<[f64; 3]> = (0..a.n).map(|i| [i as f64, (i % 5) as f64 - 2.0, 1.0]).collect();

@@ -32,16 +32,22 @@ pub enum Error {
     #[error("faces {} and {} have opposite orientations across edge ({a}, {b})", faces[0], faces[1])]
     InconsistentOrientation { a: u32, b: u32, faces: [u32; 2] },
     /// The faces around a vertex form more than one fan (e.g. a bowtie).
-    #[error("non-manifold vertex {vertex}: its faces form several fans (one fan covers {fans_cover} of its {faces} faces)")]
+    #[error(
+        "non-manifold vertex {vertex}: its faces form several fans (one fan covers {fans_cover} of its {faces} faces)"
+    )]
     NonManifoldVertex { vertex: u32, fans_cover: u32, faces: u32 },
     /// A face of (numerically) zero area.
     #[error("face {face} has zero area ({area:e})")]
     ZeroAreaFace { face: usize, area: f64 },
     /// A face whose corners, projected onto its own plane, fold over each other.
-    #[error("face {face} folds over itself (its projection onto its own plane is not a simple counter-clockwise polygon)")]
+    #[error(
+        "face {face} folds over itself (its projection onto its own plane is not a simple counter-clockwise polygon)"
+    )]
     FoldedFace { face: usize },
     /// A curvenet sample too far from the surface to bind.
-    #[error("curvenet sample {sample} (spline {spline}) is {distance:e} from the surface, farther than the limit {limit:e}")]
+    #[error(
+        "curvenet sample {sample} (spline {spline}) is {distance:e} from the surface, farther than the limit {limit:e}"
+    )]
     SampleFarFromSurface { sample: u32, spline: u32, distance: f64, limit: f64 },
     /// A segment's path reached the boundary of an open mesh.
     #[error("curvenet segment {segment} (spline {spline}) runs off the boundary of the mesh")]
@@ -50,7 +56,9 @@ pub enum Error {
     #[error("curvenet segment {segment} (spline {spline}) could not be traced over the surface between its samples")]
     SegmentNotTraced { segment: u32, spline: u32 },
     /// Two curvenet segments meet at a point that is not a shared knot.
-    #[error("curvenet segments {segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)")]
+    #[error(
+        "curvenet segments {segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)"
+    )]
     CurvesOverlap { segment: u32, other: u32 },
     /// Two curvenet segments cross inside a face without a shared knot.
     #[error("curvenet segments {segment} and {other} cross inside face {face} without a shared knot")]

@@ -60,7 +60,12 @@ pub struct PolygonScratch {
 
 /// Writes `L_f` (row-major `n × n`, `n = corners.len()`) into `out` and
 /// returns the polygon's area, or `None` when the area is (numerically) zero.
-pub fn polygon_laplacian(corners: &[DVec3], lambda: f64, scratch: &mut PolygonScratch, out: &mut Vec<f64>) -> Option<f64> {
+pub fn polygon_laplacian(
+    corners: &[DVec3],
+    lambda: f64,
+    scratch: &mut PolygonScratch,
+    out: &mut Vec<f64>,
+) -> Option<f64> {
     let n = corners.len();
     let area = polygon_gradient(corners, &mut scratch.gradient)?;
     let g = &scratch.gradient;

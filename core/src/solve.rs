@@ -102,14 +102,22 @@ impl Binding {
     ) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
-            return Err(Error::CountMismatch { what: "posed curvenets", expected: self.layouts.len(), got: posed.len() });
+            return Err(Error::CountMismatch {
+                what: "posed curvenets",
+                expected: self.layouts.len(),
+                got: posed.len(),
+            });
         }
         if out.len() != self.n_vertices() {
             return Err(Error::CountMismatch { what: "output points", expected: self.n_vertices(), got: out.len() });
         }
         if let Some(rest) = input.rest {
             if rest.len() != self.n_vertices() {
-                return Err(Error::CountMismatch { what: "rest-pose points", expected: self.n_vertices(), got: rest.len() });
+                return Err(Error::CountMismatch {
+                    what: "rest-pose points",
+                    expected: self.n_vertices(),
+                    got: rest.len(),
+                });
             }
             check_finite(rest, "rest-pose point")?;
             self.warp_to_rest(rest, ws)?;
@@ -211,8 +219,10 @@ impl Binding {
             out[v as usize] = ws.rhs3[u];
         }
         for (k, &v) in self.curve_vertices.iter().enumerate() {
-            let rows = &self.curve_vertex_rows[self.curve_vertex_start[k] as usize..self.curve_vertex_start[k + 1] as usize];
-            let mean: DVec3 = rows.iter().map(|&r| DVec3::from_array(ws.xc[r as usize])).sum::<DVec3>() / rows.len() as f64;
+            let rows =
+                &self.curve_vertex_rows[self.curve_vertex_start[k] as usize..self.curve_vertex_start[k + 1] as usize];
+            let mean: DVec3 =
+                rows.iter().map(|&r| DVec3::from_array(ws.xc[r as usize])).sum::<DVec3>() / rows.len() as f64;
             out[v as usize] = mean.to_array();
         }
         if let Some(g) = gradients {
@@ -224,7 +234,8 @@ impl Binding {
                 g[v as usize] = ws.rhs9[u];
             }
             for (k, &v) in self.curve_vertices.iter().enumerate() {
-                let rows = &self.curve_vertex_rows[self.curve_vertex_start[k] as usize..self.curve_vertex_start[k + 1] as usize];
+                let rows = &self.curve_vertex_rows
+                    [self.curve_vertex_start[k] as usize..self.curve_vertex_start[k + 1] as usize];
                 let mut m = [0.0; 9];
                 for &r in rows {
                     for i in 0..9 {

@@ -56,10 +56,14 @@ fn check_sides(b: &Binding, l: &CurvenetLayout) {
             continue;
         }
         for fwd in [true, false] {
-            let hs = by_segment.get(&(s as u32, fwd)).unwrap_or_else(|| panic!("segment {s} side {fwd} has no halfedge"));
+            let hs =
+                by_segment.get(&(s as u32, fwd)).unwrap_or_else(|| panic!("segment {s} side {fwd} has no halfedge"));
             let (mut at, end) = if fwd { (a, z) } else { (z, a) };
             for _ in 0..hs.len() {
-                let h = hs.iter().find(|&&h| cut.tail(h) == at).unwrap_or_else(|| panic!("segment {s}: chain breaks at {at}"));
+                let h = hs
+                    .iter()
+                    .find(|&&h| cut.tail(h) == at)
+                    .unwrap_or_else(|| panic!("segment {s}: chain breaks at {at}"));
                 at = cut.head(*h);
             }
             assert_eq!(at, end, "segment {s} side {fwd}: the chain does not end at the other sample");

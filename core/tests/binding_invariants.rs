@@ -40,7 +40,10 @@ fn cotangent(mesh: &PolyMesh, pts: &[[f64; 3]]) -> HashMap<(u32, u32), f64> {
     for face in mesh.faces() {
         for k in 0..3 {
             let (i, j, o) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
-            let (u, v) = (DVec3::from_array(pts[i as usize]) - DVec3::from_array(pts[o as usize]), DVec3::from_array(pts[j as usize]) - DVec3::from_array(pts[o as usize]));
+            let (u, v) = (
+                DVec3::from_array(pts[i as usize]) - DVec3::from_array(pts[o as usize]),
+                DVec3::from_array(pts[j as usize]) - DVec3::from_array(pts[o as usize]),
+            );
             let w = 0.5 * u.dot(v) / u.cross(v).length();
             *l.entry((i, j)).or_insert(0.0) -= w;
             *l.entry((j, i)).or_insert(0.0) -= w;
@@ -160,7 +163,8 @@ fn the_cut_mesh_laplacian_is_linearly_precise_and_tiles_with_cracks() {
             let row: f64 = (0..n).map(|k| lf[j * n + k]).sum();
             assert!(row.abs() <= 1e-10 * lf[j * n + j].abs().max(1e-300), "cut-face {f}: constants not in the kernel");
             let v = cut.tail(hs.start + j as u32);
-            acc[v as usize] += (0..n).map(|k| lf[j * n + k] * phi(cut.vertex(cut.tail(hs.start + k as u32)).pos)).sum::<f64>();
+            acc[v as usize] +=
+                (0..n).map(|k| lf[j * n + k] * phi(cut.vertex(cut.tail(hs.start + k as u32)).pos)).sum::<f64>();
             scale = scale.max(lf[j * n + j].abs());
         }
     }
@@ -176,7 +180,8 @@ fn the_cut_mesh_laplacian_is_linearly_precise_and_tiles_with_cracks() {
 
 /// Splits straight lines of `net` where they cross, sharing a knot there.
 fn split_at_crossings(net: &NetBuilder) -> NetBuilder {
-    let lines: Vec<([f64; 3], [f64; 3])> = net.splines.iter().map(|s| (net.points[s[0] as usize], net.points[s[3] as usize])).collect();
+    let lines: Vec<([f64; 3], [f64; 3])> =
+        net.splines.iter().map(|s| (net.points[s[0] as usize], net.points[s[3] as usize])).collect();
     let mut out = NetBuilder::default();
     for (i, &(a, b)) in lines.iter().enumerate() {
         let mut ts = vec![0.0, 1.0];
@@ -265,7 +270,11 @@ fn quad_and_nonplanar_pentagon_meshes_bind_and_reproduce_rigid_motions() {
         let mut ws = b.workspace();
         let mut out = vec![[0.0; 3]; b.n_vertices()];
         b.deform(&curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, None).unwrap();
-        let err = out.iter().zip(pts.iter()).map(|(o, p)| (DVec3::from_array(*o) - DVec3::from_array(m(p))).length()).fold(0.0, f64::max);
+        let err = out
+            .iter()
+            .zip(pts.iter())
+            .map(|(o, p)| (DVec3::from_array(*o) - DVec3::from_array(m(p))).length())
+            .fold(0.0, f64::max);
         assert!(err <= 1e-9, "{name}: rigid motion off by {err:e}");
     }
 }
@@ -292,7 +301,11 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     let c = Curvenet::new(&net.splines, &net.points).unwrap();
     let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
     let b = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap();
-    assert!(b.warnings().contains(&BindWarning::UntouchedComponent { component: 1, vertices: 6 }), "{:?}", b.warnings());
+    assert!(
+        b.warnings().contains(&BindWarning::UntouchedComponent { component: 1, vertices: 6 }),
+        "{:?}",
+        b.warnings()
+    );
     let pool: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1], p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
@@ -340,15 +353,21 @@ fn two_curvenets_bind_to_one_mesh() {
     let bvh = curvenet_core::ClosestPointBvh::new(&mesh, &pts).unwrap();
     let a = surface_grid(&bvh, [-0.05, 0.45, 0.0], 0.03);
     let b = surface_grid(&bvh, [0.1, 0.2, 0.0], 0.03);
-    let la = CurvenetLayout::new(&Curvenet::new(&a.splines, &a.points).unwrap(), &mesh, &pts, &SamplingOptions::default()).unwrap();
-    let lb = CurvenetLayout::new(&Curvenet::new(&b.splines, &b.points).unwrap(), &mesh, &pts, &SamplingOptions::default()).unwrap();
+    let la =
+        CurvenetLayout::new(&Curvenet::new(&a.splines, &a.points).unwrap(), &mesh, &pts, &SamplingOptions::default())
+            .unwrap();
+    let lb =
+        CurvenetLayout::new(&Curvenet::new(&b.splines, &b.points).unwrap(), &mesh, &pts, &SamplingOptions::default())
+            .unwrap();
     let binding = Binding::new(&mesh, &pts, &[&la, &lb], &BindOptions::default()).unwrap();
     assert_eq!(binding.n_curvenets(), 2);
     // Move only the second curvenet: vertices near the first stay put.
     let moved: Vec<[f64; 3]> = b.points.iter().map(|p| [p[0], p[1], p[2] + 0.02]).collect();
     let mut ws = binding.workspace();
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
-    binding.deform(&curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None }, &mut ws, &mut out, None).unwrap();
+    binding
+        .deform(&curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None }, &mut ws, &mut out, None)
+        .unwrap();
     let hit_a = bvh.closest_point([-0.05, 0.45, 0.0]).unwrap();
     let va = mesh.face(hit_a.face as usize)[0] as usize;
     let hit_b = bvh.closest_point([0.1, 0.2, 0.0]).unwrap();

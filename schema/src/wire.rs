@@ -81,7 +81,11 @@ impl BindingRequest {
             projection_points: mesh.projection_points.clone(),
             curvenets: nets
                 .iter()
-                .map(|n| CurvenetSpec { pool: n.pool.clone(), splines: n.splines.clone(), sample_density: n.sample_density })
+                .map(|n| CurvenetSpec {
+                    pool: n.pool.clone(),
+                    splines: n.splines.clone(),
+                    sample_density: n.sample_density,
+                })
                 .collect(),
             blend_shapes: mesh
                 .blend_shapes
@@ -90,7 +94,11 @@ impl BindingRequest {
                     name: Some(s.name.clone()),
                     offsets: s.offsets.clone(),
                     point_indices: s.point_indices.clone(),
-                    inbetweens: s.inbetweens.iter().map(|i| InbetweenSpec { weight: i.weight, offsets: i.offsets.clone() }).collect(),
+                    inbetweens: s
+                        .inbetweens
+                        .iter()
+                        .map(|i| InbetweenSpec { weight: i.weight, offsets: i.offsets.clone() })
+                        .collect(),
                 })
                 .collect(),
             options: BindingOptions::default(),

@@ -53,7 +53,11 @@ fn opts() -> Opts {
 
 fn request(mesh: &str) -> BindingRequest {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/hand");
-    let path = ["usdc", "usda"].iter().map(|e| dir.join(format!("{mesh}.{e}"))).find(|p| p.exists()).expect("the hand fixture");
+    let path = ["usdc", "usda"]
+        .iter()
+        .map(|e| dir.join(format!("{mesh}.{e}")))
+        .find(|p| p.exists())
+        .expect("the hand fixture");
     let stage = Stage::open(&path).unwrap();
     let m = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
     let nets: Vec<_> = m.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
@@ -81,7 +85,9 @@ fn pose(pool: &[[f64; 3]], i: usize) -> Vec<[f64; 3]> {
 }
 
 fn body(pose: &[[f64; 3]]) -> Vec<u8> {
-    let header = serde_json::to_vec(&serde_json::json!({"arrays": [{"name": "posed", "index": 0, "shape": [pose.len(), 3]}]})).unwrap();
+    let header =
+        serde_json::to_vec(&serde_json::json!({"arrays": [{"name": "posed", "index": 0, "shape": [pose.len(), 3]}]}))
+            .unwrap();
     let mut out = (header.len() as u32).to_le_bytes().to_vec();
     out.extend_from_slice(&header);
     for p in pose {
@@ -120,7 +126,13 @@ fn main() {
         .iter()
         .map(|c| {
             let net = Curvenet::new(&c.splines, &c.pool).unwrap();
-            CurvenetLayout::new(&net, &mesh, &req.projection_points, &SamplingOptions::default().with_density(c.sample_density)).unwrap()
+            CurvenetLayout::new(
+                &net,
+                &mesh,
+                &req.projection_points,
+                &SamplingOptions::default().with_density(c.sample_density),
+            )
+            .unwrap()
         })
         .collect();
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();

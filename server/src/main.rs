@@ -12,7 +12,11 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "curvenet", version, about = "Curve-driven character mesh deformation (profile curves, de Goes et al. 2022)")]
+#[command(
+    name = "curvenet",
+    version,
+    about = "Curve-driven character mesh deformation (profile curves, de Goes et al. 2022)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

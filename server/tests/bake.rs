@@ -25,7 +25,8 @@ fn bake(input: &str, out: &Path, extra: &[&str]) -> Output {
 }
 
 fn dir_names(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     v.sort();
     v
 }
@@ -50,7 +51,8 @@ impl Reference {
     fn new(input: &Path) -> Self {
         let stage = Stage::open(input).unwrap();
         let mesh = stage.deformed_meshes().unwrap().remove(0);
-        let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
+        let topology =
+            PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
         let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
         let layouts: Vec<CurvenetLayout> = nets
             .iter()
@@ -68,9 +70,11 @@ impl Reference {
     /// The frame as the core deforms it: posed pools, the rest pose when the
     /// mesh animates it, blend shapes after the deformation.
     fn deform(&self, t: f64) -> Vec<[f64; 3]> {
-        let pools: Vec<Option<Vec<[f64; 3]>>> = self.nets.iter().map(|n| self.stage.posed_pool(n, Some(t)).unwrap()).collect();
+        let pools: Vec<Option<Vec<[f64; 3]>>> =
+            self.nets.iter().map(|n| self.stage.posed_pool(n, Some(t)).unwrap()).collect();
         let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| p.as_deref()).collect();
-        let rest = (!self.mesh.rest_sample_times.is_empty()).then(|| self.stage.rest_points(&self.mesh, Some(t)).unwrap());
+        let rest =
+            (!self.mesh.rest_sample_times.is_empty()).then(|| self.stage.rest_points(&self.mesh, Some(t)).unwrap());
         let n = self.binding.n_vertices();
         let mut out = vec![[0.0; 3]; n];
         let mut gradients = vec![[0.0; 9]; n];
@@ -228,7 +232,8 @@ fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_no
         let points: Vec<String> = pool
             .iter()
             .map(|p| {
-                let c: Vec<String> = p.iter().map(|&x| if x.is_nan() { "nan".into() } else { format!("{:?}", x as f32) }).collect();
+                let c: Vec<String> =
+                    p.iter().map(|&x| if x.is_nan() { "nan".into() } else { format!("{:?}", x as f32) }).collect();
                 format!("({})", c.join(", "))
             })
             .collect();
@@ -242,7 +247,10 @@ fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_no
     let shot = dir.join("shot.usda");
     std::fs::write(
         &shot,
-        format!("#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 4\n    subLayers = [@./nan.usda@, @{}@]\n)\n", grid.display()),
+        format!(
+            "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 4\n    subLayers = [@./nan.usda@, @{}@]\n)\n",
+            grid.display()
+        ),
     )
     .unwrap();
     let out_dir = dir.join("out");
@@ -298,7 +306,11 @@ fn a_skinned_rest_pose_with_a_tracking_curvenet_bakes_to_the_rest_pose() {
         let baked = composed.rest_points(&mesh, Some(t)).unwrap();
         // f32 output: 1e-6 of the diagonal is a few float32 ulps.
         let d = max_diff(&baked, &rest);
-        assert!(d <= 1e-6 * diagonal, "frame {t}: the output is {:e} of the diagonal away from the rest pose", d / diagonal);
+        assert!(
+            d <= 1e-6 * diagonal,
+            "frame {t}: the output is {:e} of the diagonal away from the rest pose",
+            d / diagonal
+        );
         let d = max_diff(&baked, &reference.deform(t));
         assert!(d <= 1e-6 * diagonal, "frame {t}: the bake differs from the in-process solve by {d:e}");
         largest_motion = largest_motion.max(max_diff(&rest, &input_mesh.projection_points));
@@ -345,7 +357,11 @@ fn usd_core_reads_the_bake_composed_over_its_input_as_the_in_process_solve() {
             for (t, points) in frames.iter().zip(usd_core_points(&out, &input, &frames)) {
                 // float32 output: within a few ulps of the f64 solve.
                 let d = max_diff(&points, &reference.deform(*t));
-                assert!(d <= 1e-6 * diagonal, "{shot} ({ext}), frame {t}: usd-core reads {:e} of the diagonal away", d / diagonal);
+                assert!(
+                    d <= 1e-6 * diagonal,
+                    "{shot} ({ext}), frame {t}: usd-core reads {:e} of the diagonal away",
+                    d / diagonal
+                );
             }
         }
     }

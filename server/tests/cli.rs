@@ -98,7 +98,13 @@ fn assert_curves_partition_splines(a: &serde_json::Value, n_splines: usize) {
 }
 
 fn curvenet_warnings(v: &serde_json::Value, prim: &str) -> Vec<String> {
-    v["warnings"].as_array().unwrap().iter().map(|w| w.as_str().unwrap().to_string()).filter(|w| w.starts_with(prim)).collect()
+    v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .filter(|w| w.starts_with(prim))
+        .collect()
 }
 
 #[test]
@@ -184,7 +190,7 @@ fn inspect_analyses_the_cylinder_curvenet() {
     assert_eq!(a["intersections_by_valence"], serde_json::json!({"3": 8, "4": 12}));
     for i in a["intersections"].as_array().unwrap() {
         let p = i["point"].as_u64().unwrap();
-        let want = if p < 4 || p >= 16 { 3 } else { 4 };
+        let want = if !(4..16).contains(&p) { 3 } else { 4 };
         assert_eq!(i["valence"], want, "{i}");
     }
     // Every knot is an intersection, so every spline is a curve of its own:
@@ -268,7 +274,8 @@ fn inspect_text_and_json_agree_on_the_analysis() {
             assert!(line.contains(&format!("{n} of valence {valence}")), "{line}");
         }
         // One line per intersection and per curve, with the same valences and samples.
-        let intersections: Vec<&str> = text.lines().filter(|l| l.starts_with("  intersection at control point ")).collect();
+        let intersections: Vec<&str> =
+            text.lines().filter(|l| l.starts_with("  intersection at control point ")).collect();
         assert_eq!(intersections.len(), len(&a["intersections"]));
         for (l, i) in intersections.iter().zip(a["intersections"].as_array().unwrap()) {
             assert!(l.contains(&format!("control point {}: valence {},", i["point"], i["valence"])), "{l} vs {i}");
@@ -418,8 +425,11 @@ fn inspect_warns_about_suspicious_curvenets() {
     // 0.08 long, shorter than one mesh edge (1) and round(5 · 0.08) = 0 → 1
     // segment. Pool point 12 is used by no spline.
     let mut pool = Vec::new();
-    for (a, b) in [([-1.5, -1.0, 0.0], [1.5, -1.0, 0.0]), ([-1.5, 1.0, 0.6], [1.5, 1.0, 0.6]), ([0.0, 0.5, 0.0], [0.08, 0.5, 0.0])]
-    {
+    for (a, b) in [
+        ([-1.5, -1.0, 0.0], [1.5, -1.0, 0.0]),
+        ([-1.5, 1.0, 0.6], [1.5, 1.0, 0.6]),
+        ([0.0, 0.5, 0.0], [0.08, 0.5, 0.0]),
+    ] {
         pool.extend(straight(a, b));
     }
     pool.push([0.0, 0.0, 0.0]);
@@ -448,7 +458,10 @@ fn inspect_warns_about_suspicious_curvenets() {
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let w = curvenet_warnings(&v, "/W/Net");
     let has = |needle: &str| w.iter().any(|x| x.contains(needle));
-    assert!(has("2 meshes target this curvenet (/W/Mesh, /W/Other); it is analysed against the first, /W/Mesh"), "{w:#?}");
+    assert!(
+        has("2 meshes target this curvenet (/W/Mesh, /W/Other); it is analysed against the first, /W/Mesh"),
+        "{w:#?}"
+    );
     assert!(has("1 control point of the pool is used by no spline: 12"), "{w:#?}");
     assert!(has("spline 1 is 0.6000 from the surface of /W/Mesh"), "{w:#?}");
     assert!(!has("spline 0 is") && !has("spline 2 is"), "{w:#?}");
@@ -458,7 +471,10 @@ fn inspect_warns_about_suspicious_curvenets() {
     assert!(has("at time 2 the posed pool (primvars:curvenet:cv) has 1 non-finite control point: 5"), "{w:#?}");
     assert_eq!(w.len(), 6, "{w:#?}");
     // The per-curvenet list holds the same warnings.
-    assert_eq!(v["curvenets"].as_array().unwrap().iter().find(|c| c["path"] == "/W/Net").unwrap()["warnings"], serde_json::json!(w));
+    assert_eq!(
+        v["curvenets"].as_array().unwrap().iter().find(|c| c["path"] == "/W/Net").unwrap()["warnings"],
+        serde_json::json!(w)
+    );
     let a = &v["curvenets"].as_array().unwrap().iter().find(|c| c["path"] == "/W/Net").unwrap()["analysis"];
     assert_eq!(a["unused_control_points"], serde_json::json!([12]));
     assert_eq!(a["max_distance_spline"], 1);

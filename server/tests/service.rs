@@ -40,7 +40,13 @@ fn reference(req: &BindingRequest) -> Binding {
         .iter()
         .map(|c| {
             let net = Curvenet::new(&c.splines, &c.pool).unwrap();
-            CurvenetLayout::new(&net, &mesh, &req.projection_points, &SamplingOptions::default().with_density(c.sample_density)).unwrap()
+            CurvenetLayout::new(
+                &net,
+                &mesh,
+                &req.projection_points,
+                &SamplingOptions::default().with_density(c.sample_density),
+            )
+            .unwrap()
         })
         .collect();
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
@@ -73,7 +79,10 @@ fn to_f32(ps: &[[f64; 3]]) -> Vec<[f64; 3]> {
 /// Largest difference, relative to max(1, |reference|).
 fn max_rel_diff(got: &[[f64; 3]], want: &[[f64; 3]]) -> f64 {
     assert_eq!(got.len(), want.len());
-    got.iter().zip(want).flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs() / b[i].abs().max(1.0))).fold(0.0, f64::max)
+    got.iter()
+        .zip(want)
+        .flat_map(|(a, b)| (0..3).map(move |i| (a[i] - b[i]).abs() / b[i].abs().max(1.0)))
+        .fold(0.0, f64::max)
 }
 
 /// f32 precision, with room for a few roundings.
@@ -96,7 +105,10 @@ async fn send(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes
 }
 
 fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri).header(header::CONTENT_TYPE, "application/json").body(Body::from(serde_json::to_vec(body).unwrap())).unwrap()
+    Request::post(uri)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(Body::from(serde_json::to_vec(body).unwrap()))
+        .unwrap()
 }
 
 fn post_binary(uri: &str, body: Vec<u8>) -> Request<Body> {
@@ -114,7 +126,8 @@ async fn post_binding(app: &Router, req: &BindingRequest) -> BindingResponse {
 }
 
 fn error_code(body: &[u8]) -> String {
-    let v: Value = serde_json::from_slice(body).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(body)));
+    let v: Value =
+        serde_json::from_slice(body).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(body)));
     v["code"].as_str().unwrap().to_string()
 }
 
@@ -257,7 +270,10 @@ async fn json_and_binary_frames_equal_the_in_process_solve() {
     // Binary: the same pose sent as f32; the reference gets the same f32-rounded pool.
     let pose32 = to_f32(&pose);
     let want = deform_reference(b, Some(&pose32));
-    let body = binary_frame(&json!({"arrays": [{"name": "posed", "index": 0, "shape": [pool.len(), 3]}]}), &[&flat_f32(&pose)]);
+    let body = binary_frame(
+        &json!({"arrays": [{"name": "posed", "index": 0, "shape": [pool.len(), 3]}]}),
+        &[&flat_f32(&pose)],
+    );
     let (status, h, body) = send(&app, post_binary(&uri, body)).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     assert_eq!(h[header::CONTENT_TYPE], "application/octet-stream");
@@ -341,33 +357,204 @@ async fn every_bad_input_gets_its_status_and_code_and_a_good_frame_still_works()
     let pool_needle = format!("posed[0] has {}", np - 1);
     let vertex_needle = format!("{}", nv + 3);
     let cases: Vec<(&str, Request<Body>, StatusCode, &str, &str)> = vec![
-        ("syntax", post_json(&uri, &json!("{")).map(|_| Body::from("{\"posed\": [")), StatusCode::BAD_REQUEST, "malformed_json", "line"),
-        ("NaN literal", Request::post(&uri).body(Body::from("{\"posed\": [[[NaN, 0, 0]]]}")).unwrap(), StatusCode::BAD_REQUEST, "malformed_json", ""),
-        ("unknown field", post_json(&uri, &json!({"poses": []})), StatusCode::BAD_REQUEST, "malformed_json", "unknown field"),
-        ("media type", Request::post(&uri).header(header::CONTENT_TYPE, "text/plain").body(Body::from("x")).unwrap(), StatusCode::UNSUPPORTED_MEDIA_TYPE, "unsupported_media_type", "text/plain"),
-        ("posed count", post_json(&uri, &json!({"posed": [null, null]})), StatusCode::UNPROCESSABLE_ENTITY, "count_mismatch", "2 entries"),
-        ("pool size", post_json(&uri, &json!({"posed": [&pool[1..]]})), StatusCode::UNPROCESSABLE_ENTITY, "count_mismatch", &pool_needle),
-        ("rest size", post_json(&uri, &json!({"rest": [[0.0, 0.0, 0.0]]})), StatusCode::UNPROCESSABLE_ENTITY, "count_mismatch", "rest has 1 points"),
-        ("weights without shapes", post_json(&uri, &json!({"blend_shape_weights": [1.0]})), StatusCode::UNPROCESSABLE_ENTITY, "count_mismatch", "blend_shape_weights"),
-        ("binary NaN", post_binary(&uri, binary_frame(&json!({"arrays": [{"name": "posed", "index": 0, "shape": [np, 3]}]}), &[&nan_pool])), StatusCode::UNPROCESSABLE_ENTITY, "non_finite", "posed[0][17]"),
-        ("binary short", post_binary(&uri, binary_frame(&json!({"arrays": [{"name": "posed", "index": 0, "shape": [np, 3]}]}), &[&nan_pool[..30]])), StatusCode::BAD_REQUEST, "malformed_binary", "needs"),
-        ("binary trailing", post_binary(&uri, binary_frame(&json!({"arrays": []}), &[&[1.0]])), StatusCode::BAD_REQUEST, "malformed_binary", "4 bytes follow"),
-        ("binary dtype", post_binary(&uri, binary_frame(&json!({"arrays": [{"name": "rest", "dtype": "f64", "shape": [1, 3]}]}), &[&[0.0; 6]])), StatusCode::BAD_REQUEST, "malformed_binary", "dtype"),
-        ("binary curvenet index", post_binary(&uri, binary_frame(&json!({"arrays": [{"name": "posed", "index": 3, "shape": [np, 3]}]}), &[&flat_f32(&pool)])), StatusCode::UNPROCESSABLE_ENTITY, "index_out_of_range", "posed index 3"),
-        ("binary header length", post_binary(&uri, vec![200, 0, 0, 0, b'{']), StatusCode::BAD_REQUEST, "malformed_binary", "header length"),
-        ("topology changed", post_json(&uri, &json!({"topology_hash": "00".repeat(32)})), StatusCode::CONFLICT, "topology_changed", &bound.topology_hash),
-        ("unknown binding", post_json(&format!("/v1/bindings/{}/frames", "ab".repeat(32)), &json!({})), StatusCode::NOT_FOUND, "unknown_binding", "POST /v1/bindings"),
-        ("malformed id", post_json("/v1/bindings/xyz/frames", &json!({})), StatusCode::NOT_FOUND, "unknown_binding", "xyz"),
+        (
+            "syntax",
+            post_json(&uri, &json!("{")).map(|_| Body::from("{\"posed\": [")),
+            StatusCode::BAD_REQUEST,
+            "malformed_json",
+            "line",
+        ),
+        (
+            "NaN literal",
+            Request::post(&uri).body(Body::from("{\"posed\": [[[NaN, 0, 0]]]}")).unwrap(),
+            StatusCode::BAD_REQUEST,
+            "malformed_json",
+            "",
+        ),
+        (
+            "unknown field",
+            post_json(&uri, &json!({"poses": []})),
+            StatusCode::BAD_REQUEST,
+            "malformed_json",
+            "unknown field",
+        ),
+        (
+            "media type",
+            Request::post(&uri).header(header::CONTENT_TYPE, "text/plain").body(Body::from("x")).unwrap(),
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "unsupported_media_type",
+            "text/plain",
+        ),
+        (
+            "posed count",
+            post_json(&uri, &json!({"posed": [null, null]})),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "count_mismatch",
+            "2 entries",
+        ),
+        (
+            "pool size",
+            post_json(&uri, &json!({"posed": [&pool[1..]]})),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "count_mismatch",
+            &pool_needle,
+        ),
+        (
+            "rest size",
+            post_json(&uri, &json!({"rest": [[0.0, 0.0, 0.0]]})),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "count_mismatch",
+            "rest has 1 points",
+        ),
+        (
+            "weights without shapes",
+            post_json(&uri, &json!({"blend_shape_weights": [1.0]})),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "count_mismatch",
+            "blend_shape_weights",
+        ),
+        (
+            "binary NaN",
+            post_binary(
+                &uri,
+                binary_frame(&json!({"arrays": [{"name": "posed", "index": 0, "shape": [np, 3]}]}), &[&nan_pool]),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "non_finite",
+            "posed[0][17]",
+        ),
+        (
+            "binary short",
+            post_binary(
+                &uri,
+                binary_frame(&json!({"arrays": [{"name": "posed", "index": 0, "shape": [np, 3]}]}), &[&nan_pool[..30]]),
+            ),
+            StatusCode::BAD_REQUEST,
+            "malformed_binary",
+            "needs",
+        ),
+        (
+            "binary trailing",
+            post_binary(&uri, binary_frame(&json!({"arrays": []}), &[&[1.0]])),
+            StatusCode::BAD_REQUEST,
+            "malformed_binary",
+            "4 bytes follow",
+        ),
+        (
+            "binary dtype",
+            post_binary(
+                &uri,
+                binary_frame(&json!({"arrays": [{"name": "rest", "dtype": "f64", "shape": [1, 3]}]}), &[&[0.0; 6]]),
+            ),
+            StatusCode::BAD_REQUEST,
+            "malformed_binary",
+            "dtype",
+        ),
+        (
+            "binary curvenet index",
+            post_binary(
+                &uri,
+                binary_frame(
+                    &json!({"arrays": [{"name": "posed", "index": 3, "shape": [np, 3]}]}),
+                    &[&flat_f32(&pool)],
+                ),
+            ),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "index_out_of_range",
+            "posed index 3",
+        ),
+        (
+            "binary header length",
+            post_binary(&uri, vec![200, 0, 0, 0, b'{']),
+            StatusCode::BAD_REQUEST,
+            "malformed_binary",
+            "header length",
+        ),
+        (
+            "topology changed",
+            post_json(&uri, &json!({"topology_hash": "00".repeat(32)})),
+            StatusCode::CONFLICT,
+            "topology_changed",
+            &bound.topology_hash,
+        ),
+        (
+            "unknown binding",
+            post_json(&format!("/v1/bindings/{}/frames", "ab".repeat(32)), &json!({})),
+            StatusCode::NOT_FOUND,
+            "unknown_binding",
+            "POST /v1/bindings",
+        ),
+        (
+            "malformed id",
+            post_json("/v1/bindings/xyz/frames", &json!({})),
+            StatusCode::NOT_FOUND,
+            "unknown_binding",
+            "xyz",
+        ),
         ("no route", get("/v2/nothing"), StatusCode::NOT_FOUND, "not_found", ""),
         ("method", get("/v1/bindings"), StatusCode::METHOD_NOT_ALLOWED, "method_not_allowed", ""),
-        ("face counts", post_json("/v1/bindings", &short_binding), StatusCode::UNPROCESSABLE_ENTITY, "count_mismatch", "face vertex counts sum"),
-        ("vertex index", post_json("/v1/bindings", &oob_binding), StatusCode::UNPROCESSABLE_ENTITY, "index_out_of_range", &vertex_needle),
-        ("spline index", post_json("/v1/bindings", &bad_spline), StatusCode::UNPROCESSABLE_ENTITY, "index_out_of_range", "curvenets[0].splines[2]"),
-        ("no curvenets", post_json("/v1/bindings", &no_nets), StatusCode::UNPROCESSABLE_ENTITY, "empty_input", "curvenets"),
-        ("density", post_json("/v1/bindings", &bad_density), StatusCode::UNPROCESSABLE_ENTITY, "invalid_parameter", "sample_density"),
-        ("snap", post_json("/v1/bindings", &bad_snap), StatusCode::UNPROCESSABLE_ENTITY, "invalid_parameter", "snap_tolerance"),
-        ("far from surface", post_json("/v1/bindings", &far), StatusCode::UNPROCESSABLE_ENTITY, "binding_failed", "from the surface"),
-        ("negative index", Request::post("/v1/bindings").body(Body::from(serde_json::to_string(hand()).unwrap().replacen("\"face_vertex_indices\":[", "\"face_vertex_indices\":[-1,", 1))).unwrap(), StatusCode::BAD_REQUEST, "malformed_json", "-1"),
+        (
+            "face counts",
+            post_json("/v1/bindings", &short_binding),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "count_mismatch",
+            "face vertex counts sum",
+        ),
+        (
+            "vertex index",
+            post_json("/v1/bindings", &oob_binding),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "index_out_of_range",
+            &vertex_needle,
+        ),
+        (
+            "spline index",
+            post_json("/v1/bindings", &bad_spline),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "index_out_of_range",
+            "curvenets[0].splines[2]",
+        ),
+        (
+            "no curvenets",
+            post_json("/v1/bindings", &no_nets),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "empty_input",
+            "curvenets",
+        ),
+        (
+            "density",
+            post_json("/v1/bindings", &bad_density),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_parameter",
+            "sample_density",
+        ),
+        (
+            "snap",
+            post_json("/v1/bindings", &bad_snap),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "invalid_parameter",
+            "snap_tolerance",
+        ),
+        (
+            "far from surface",
+            post_json("/v1/bindings", &far),
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "binding_failed",
+            "from the surface",
+        ),
+        (
+            "negative index",
+            Request::post("/v1/bindings")
+                .body(Body::from(serde_json::to_string(hand()).unwrap().replacen(
+                    "\"face_vertex_indices\":[",
+                    "\"face_vertex_indices\":[-1,",
+                    1,
+                )))
+                .unwrap(),
+            StatusCode::BAD_REQUEST,
+            "malformed_json",
+            "-1",
+        ),
     ];
     for (name, req, status, code, needle) in cases {
         let (got, headers, body) = send(&app, req).await;
@@ -518,7 +705,8 @@ async fn evicted_bindings_answer_unknown_binding_and_are_counted() {
     let second = post_binding(&app, &other).await;
     // moka evicts during its maintenance; /metrics runs it.
     assert!(metric(&app, "curvenet_cache_evictions_total").await >= 1.0);
-    let (status, _, body) = send(&app, post_json(&format!("/v1/bindings/{}/frames", first.binding_id), &json!({}))).await;
+    let (status, _, body) =
+        send(&app, post_json(&format!("/v1/bindings/{}/frames", first.binding_id), &json!({}))).await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert_eq!(error_code(&body), "unknown_binding");
     let (status, _, _) = send(&app, post_json(&format!("/v1/bindings/{}/frames", second.binding_id), &json!({}))).await;
@@ -549,7 +737,9 @@ async fn one_shot_deform_uses_the_cache_and_blend_shapes_apply() {
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&bytes));
     let v: Value = serde_json::from_slice(&bytes).unwrap();
     assert_eq!(v["cached"], false);
-    assert!(max_rel_diff(&json_points(&v["frame"]["points"]), &deform_reference(hand_reference(), Some(&pose))) <= F32_TOL);
+    assert!(
+        max_rel_diff(&json_points(&v["frame"]["points"]), &deform_reference(hand_reference(), Some(&pose))) <= F32_TOL
+    );
     let (_, _, bytes) = send(&app, post_json("/v1/deform", &body)).await;
     let again: Value = serde_json::from_slice(&bytes).unwrap();
     assert_eq!(again["cached"], true);
@@ -559,7 +749,9 @@ async fn one_shot_deform_uses_the_cache_and_blend_shapes_apply() {
     // A sparse blend shape lifting vertex 7: weight 0 changes nothing; in the
     // `before` mode at the neutral pose it moves the vertex by its offset.
     let mut with_shape = hand().clone();
-    with_shape.blend_shapes = vec![serde_json::from_value(json!({"name": "lift", "offsets": [[0.0, 0.0, 0.01]], "point_indices": [7]})).unwrap()];
+    with_shape.blend_shapes = vec![
+        serde_json::from_value(json!({"name": "lift", "offsets": [[0.0, 0.0, 0.01]], "point_indices": [7]})).unwrap(),
+    ];
     let bound = post_binding(&app, &with_shape).await;
     assert_eq!(bound.blend_shapes, 1);
     assert_ne!(bound.binding_id, v["binding_id"].as_str().unwrap());
@@ -582,7 +774,14 @@ async fn openapi_describes_the_api() {
     assert_eq!(status, StatusCode::OK);
     let v: Value = serde_json::from_slice(&body).unwrap();
     assert!(v["openapi"].as_str().unwrap().starts_with("3.1"));
-    for path in ["/v1/bindings", "/v1/bindings/{id}/frames", "/v1/bindings/{id}/frames:batch", "/v1/deform", "/v1/bake", "/healthz"] {
+    for path in [
+        "/v1/bindings",
+        "/v1/bindings/{id}/frames",
+        "/v1/bindings/{id}/frames:batch",
+        "/v1/deform",
+        "/v1/bake",
+        "/healthz",
+    ] {
         assert!(v["paths"].get(path).is_some(), "{path} missing");
     }
     for schema in ["BindingRequest", "FrameRequest", "BinaryFrameHeader", "ErrorBody"] {
@@ -608,8 +807,9 @@ async fn a_real_socket_serves_and_drains_on_shutdown() {
     let bound: BindingResponse =
         client.post(format!("{base}/v1/bindings")).json(hand()).send().await.unwrap().json().await.unwrap();
     let pool = &hand().curvenets[0].pool;
-    let frames: Vec<FrameRequest> =
-        (0..200).map(|i| FrameRequest { posed: Some(vec![Some(rotated(pool, i as f64))]), ..Default::default() }).collect();
+    let frames: Vec<FrameRequest> = (0..200)
+        .map(|i| FrameRequest { posed: Some(vec![Some(rotated(pool, i as f64))]), ..Default::default() })
+        .collect();
     // A batch in flight when the shutdown signal comes still completes.
     let in_flight = {
         let client = client.clone();
@@ -635,7 +835,8 @@ async fn a_real_socket_serves_and_drains_on_shutdown() {
 #[test]
 fn the_readme_error_table_is_the_code_table() {
     let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
-    let table = readme.split("<!-- error-codes: begin -->").nth(1).unwrap().split("<!-- error-codes: end -->").next().unwrap();
+    let table =
+        readme.split("<!-- error-codes: begin -->").nth(1).unwrap().split("<!-- error-codes: end -->").next().unwrap();
     let rows: Vec<(String, u16)> = table
         .lines()
         .filter_map(|l| {

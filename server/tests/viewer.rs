@@ -39,7 +39,10 @@ fn get(uri: &str) -> Request<Body> {
 }
 
 fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri).header(header::CONTENT_TYPE, "application/json").body(Body::from(serde_json::to_vec(body).unwrap())).unwrap()
+    Request::post(uri)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(Body::from(serde_json::to_vec(body).unwrap()))
+        .unwrap()
 }
 
 async fn json_of(app: &Router, req: Request<Body>) -> Value {
@@ -71,7 +74,9 @@ fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_is_self_contained_and_open_without_the_token() {
     let app = app(state(Some("secret")));
-    for (path, kind) in [("/viewer", "text/html"), ("/viewer/viewer.js", "text/javascript"), ("/viewer/viewer.css", "text/css")] {
+    for (path, kind) in
+        [("/viewer", "text/html"), ("/viewer/viewer.js", "text/javascript"), ("/viewer/viewer.css", "text/css")]
+    {
         let (status, headers, body) = send(&app, get(path)).await;
         assert_eq!(status, StatusCode::OK, "{path}");
         assert!(headers[header::CONTENT_TYPE].to_str().unwrap().starts_with(kind), "{path}");
@@ -88,7 +93,8 @@ async fn the_page_is_self_contained_and_open_without_the_token() {
     let (status, _, body) = send(&app, get("/v1/viewer/stages")).await;
     assert_eq!(status, StatusCode::UNAUTHORIZED);
     assert_eq!(serde_json::from_slice::<Value>(&body).unwrap()["code"], "unauthorized");
-    let req = Request::get("/v1/viewer/stages").header(header::AUTHORIZATION, "Bearer secret").body(Body::empty()).unwrap();
+    let req =
+        Request::get("/v1/viewer/stages").header(header::AUTHORIZATION, "Bearer secret").body(Body::empty()).unwrap();
     assert_eq!(json_of(&app, req).await, json!({"stages": []}));
 }
 
@@ -187,9 +193,14 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
     // Frame k: the pool shifted by k cm along x; frame 2 cannot be read.
     let frame: FrameSource = Arc::new(move |k: usize| {
         if k == 2 {
-            return Err("/Hand/Curvenet: primvars:curvenet:cv has 3 control points at time 12, the neutral pose has 251".into());
+            return Err(
+                "/Hand/Curvenet: primvars:curvenet:cv has 3 control points at time 12, the neutral pose has 251".into(),
+            );
         }
-        Ok(FrameRequest { posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]), ..FrameRequest::default() })
+        Ok(FrameRequest {
+            posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]),
+            ..FrameRequest::default()
+        })
     });
     let index = state.open_in_viewer(ViewerStage::new(
         "shots/wave.usda".into(),
@@ -235,9 +246,12 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
 
     // The OpenAPI document lists the viewer's routes.
     let doc = json_of(&app, get("/openapi.json")).await;
-    for path in
-        ["/v1/viewer/stages", "/v1/viewer/stages/{index}/frames/{k}", "/v1/bindings/{id}/viewer-data", "/v1/bindings/{id}/viewer-frame"]
-    {
+    for path in [
+        "/v1/viewer/stages",
+        "/v1/viewer/stages/{index}/frames/{k}",
+        "/v1/bindings/{id}/viewer-data",
+        "/v1/bindings/{id}/viewer-frame",
+    ] {
         assert!(doc["paths"].get(path).is_some(), "{path} missing");
     }
 }

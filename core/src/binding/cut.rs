@@ -296,7 +296,9 @@ impl<'s> Registry<'s> {
             Location::Vertex(v) => return v,
             Location::Edge { h, .. } => {
                 let list = self.on_edge.entry(h).or_default();
-                if let Some(&(_, id)) = list.iter().find(|&&(_, id)| (self.vertices[id as usize].pos - pos).length() <= tol) {
+                if let Some(&(_, id)) =
+                    list.iter().find(|&&(_, id)| (self.vertices[id as usize].pos - pos).length() <= tol)
+                {
                     return id;
                 }
                 let Location::Edge { t, .. } = loc else { unreachable!() };
@@ -336,7 +338,13 @@ impl<'s> Registry<'s> {
         he.face_halfedges(f).find(|&h| on(la, h) && on(lb, h)).map(|h| s.canonical(h))
     }
 
-    fn build(mut self, surface: &Surface, input: CutInput<'_>, pieces: Vec<Piece>, mut sample_vertex: Vec<u32>) -> Result<CutMesh> {
+    fn build(
+        mut self,
+        surface: &Surface,
+        input: CutInput<'_>,
+        pieces: Vec<Piece>,
+        mut sample_vertex: Vec<u32>,
+    ) -> Result<CutMesh> {
         let he = &surface.halfedges;
         for list in self.on_edge.values_mut() {
             list.sort_by(|x, y| x.0.total_cmp(&y.0));
@@ -349,7 +357,13 @@ impl<'s> Registry<'s> {
                 // Every sub-piece of the edge between a and b runs along the segment.
                 let t_of = |v: u32| -> f64 {
                     match self.vertices[v as usize].loc {
-                        Location::Vertex(x) => if he.tail(c) == x { 0.0 } else { 1.0 },
+                        Location::Vertex(x) => {
+                            if he.tail(c) == x {
+                                0.0
+                            } else {
+                                1.0
+                            }
+                        }
                         Location::Edge { t, .. } => t,
                         Location::Face { .. } => unreachable!(),
                     }
@@ -370,7 +384,8 @@ impl<'s> Registry<'s> {
         }
 
         let mut out = Builder::default();
-        let mut boundary_key: HashMap<(u32, u32), u32> = HashMap::with_capacity_and_hasher(he.n_halfedges() + 4 * pieces.len(), Default::default());
+        let mut boundary_key: HashMap<(u32, u32), u32> =
+            HashMap::with_capacity_and_hasher(he.n_halfedges() + 4 * pieces.len(), Default::default());
         let mut removed_vertices = vec![false; self.vertices.len()];
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
@@ -386,7 +401,8 @@ impl<'s> Registry<'s> {
                     let gh = out.tail.len() as u32;
                     out.tail.push(ca);
                     out.face.push(face_id);
-                    let seg = along.get(&(ca, cb)).map(|&s| (s, true)).or_else(|| along.get(&(cb, ca)).map(|&s| (s, false)));
+                    let seg =
+                        along.get(&(ca, cb)).map(|&s| (s, true)).or_else(|| along.get(&(cb, ca)).map(|&s| (s, false)));
                     out.segment.push(seg.map_or(INVALID, |x| x.0));
                     out.forward.push(seg.is_some_and(|x| x.1));
                     out.twin.push(INVALID);
@@ -597,7 +613,12 @@ impl Pslg {
                 if a == c || a == d || b == c || b == d {
                     continue; // sharing a node
                 }
-                if segments_cross(self.pos[a as usize], self.pos[b as usize], self.pos[c as usize], self.pos[d as usize]) {
+                if segments_cross(
+                    self.pos[a as usize],
+                    self.pos[b as usize],
+                    self.pos[c as usize],
+                    self.pos[d as usize],
+                ) {
                     return Err(if self.boundary[2 * j] {
                         Error::SegmentCrossesFaceBoundary { segment: self.seg[2 * i], face: f }
                     } else {
@@ -706,11 +727,18 @@ impl Pslg {
     }
 
     /// The segment a halfedge runs along, and whether forward.
-    fn annotation(&self, e: u32, input: CutInput<'_>, along: &HashMap<(u32, u32), u32>, ca: u32, cb: u32) -> (u32, bool) {
+    fn annotation(
+        &self,
+        e: u32,
+        input: CutInput<'_>,
+        along: &HashMap<(u32, u32), u32>,
+        ca: u32,
+        cb: u32,
+    ) -> (u32, bool) {
         if !self.is_boundary(e) {
             let s = self.seg[e as usize];
             // Chord pairs were added a->b along the segment: even halfedges run forward.
-            return (s, e % 2 == 0);
+            return (s, e.is_multiple_of(2));
         }
         let _ = input;
         if let Some(&s) = along.get(&(ca, cb)) {

@@ -97,7 +97,9 @@ impl std::fmt::Display for BindWarning {
             BindWarning::IslandsRemoved { islands, samples } => {
                 write!(f, "{islands} curvenet islands inside single faces were removed ({samples} samples)")
             }
-            BindWarning::DegenerateCutFaces { count } => write!(f, "{count} zero-area cut-faces were left out of the Laplacian"),
+            BindWarning::DegenerateCutFaces { count } => {
+                write!(f, "{count} zero-area cut-faces were left out of the Laplacian")
+            }
         }
     }
 }
@@ -232,7 +234,12 @@ const HEAD: u8 = 1;
 impl Binding {
     /// Binds `curvenets` (analysed against this mesh in the projection pose)
     /// to `mesh` posed at `projection_points`.
-    pub fn new(mesh: &PolyMesh, projection_points: &[[f64; 3]], curvenets: &[&CurvenetLayout], options: &BindOptions) -> Result<Self> {
+    pub fn new(
+        mesh: &PolyMesh,
+        projection_points: &[[f64; 3]],
+        curvenets: &[&CurvenetLayout],
+        options: &BindOptions,
+    ) -> Result<Self> {
         let t0 = Instant::now();
         let surface = Surface::new(mesh, projection_points)?;
         let t1 = Instant::now();
@@ -240,7 +247,12 @@ impl Binding {
     }
 
     /// Like [`Self::new`] with a prepared surface.
-    pub fn with_surface(surface: Surface, curvenets: &[&CurvenetLayout], options: &BindOptions, surface_ms: f64) -> Result<Self> {
+    pub fn with_surface(
+        surface: Surface,
+        curvenets: &[&CurvenetLayout],
+        options: &BindOptions,
+        surface_ms: f64,
+    ) -> Result<Self> {
         if curvenets.is_empty() {
             return Err(Error::Empty { what: "the list of curvenets to bind" });
         }
@@ -275,7 +287,11 @@ impl Binding {
             }
             n_slots += layout.constraints().len() as u32;
         }
-        let cut = CutMesh::new(&surface, CutInput { samples: &samples, segments: &segments, sample_spline: &sample_spline }, &options.cut)?;
+        let cut = CutMesh::new(
+            &surface,
+            CutInput { samples: &samples, segments: &segments, sample_spline: &sample_spline },
+            &options.cut,
+        )?;
         let t2 = Instant::now();
 
         // Corners: unknown, slot or crossing row.
@@ -437,7 +453,8 @@ impl Binding {
             constraints: n_c,
             factor_nonzeros: factor.nnz(),
         };
-        let timings = BindTimings { surface_ms, cutting_ms: ms(t1, t2), assembly_ms: ms(t2, t3), factor_ms: ms(t3, t4) };
+        let timings =
+            BindTimings { surface_ms, cutting_ms: ms(t1, t2), assembly_ms: ms(t2, t3), factor_ms: ms(t3, t4) };
 
         let mut slot_sample = Vec::with_capacity(n_slots as usize);
         for (layout, range) in curvenets.iter().zip(&nets) {
@@ -454,7 +471,10 @@ impl Binding {
         let crossing_offset = crossings
             .iter()
             .map(|c| {
-                let (pl, ph) = (sample_projection[slot_sample[c.lo as usize] as usize], sample_projection[slot_sample[c.hi as usize] as usize]);
+                let (pl, ph) = (
+                    sample_projection[slot_sample[c.lo as usize] as usize],
+                    sample_projection[slot_sample[c.hi as usize] as usize],
+                );
                 cut.vertex(c.vertex).pos - pl.lerp(ph, c.t)
             })
             .collect();
@@ -462,7 +482,8 @@ impl Binding {
         for f in 0..cut.n_faces() as u32 {
             let hs = cut.face_halfedges(f);
             let n = hs.len();
-            let lf = &face_laplacian[face_laplacian_start[f as usize] as usize..face_laplacian_start[f as usize + 1] as usize];
+            let lf = &face_laplacian
+                [face_laplacian_start[f as usize] as usize..face_laplacian_start[f as usize + 1] as usize];
             for j in 0..n {
                 corner_r[hs.start as usize + j] =
                     (0..n).map(|k| lf[j * n + k] * cut.vertex(cut.tail(hs.start + k as u32)).pos).sum();
@@ -471,10 +492,11 @@ impl Binding {
         let mut rows_of: Vec<Vec<u32>> = vec![Vec::new(); n_vertices];
         for h in 0..cut.n_halfedges() as u32 {
             let v = cut.tail(h);
-            if (v as usize) < n_vertices && vertex_is_curve[v as usize] {
-                if let Corner::Constraint(r) = corner[h as usize] {
-                    rows_of[v as usize].push(r);
-                }
+            if (v as usize) < n_vertices
+                && vertex_is_curve[v as usize]
+                && let Corner::Constraint(r) = corner[h as usize]
+            {
+                rows_of[v as usize].push(r);
             }
         }
         let mut curve_vertices = Vec::new();
@@ -558,7 +580,8 @@ impl Binding {
     }
     /// The Laplacian of cut-face `f` (row-major, `n_f × n_f`).
     pub fn face_laplacian(&self, f: u32) -> &[f64] {
-        &self.face_laplacian[self.face_laplacian_start[f as usize] as usize..self.face_laplacian_start[f as usize + 1] as usize]
+        &self.face_laplacian
+            [self.face_laplacian_start[f as usize] as usize..self.face_laplacian_start[f as usize + 1] as usize]
     }
     /// The value source of corner (cut halfedge) `h`: `Some(Ok(u))` unknown
     /// `u`, `Some(Err(r))` constraint row `r`, `None` fixed.

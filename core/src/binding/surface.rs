@@ -212,11 +212,15 @@ pub(crate) fn triangulate(poly: &[DVec2], out: &mut Vec<[u32; 3]>) -> Option<()>
     while idx.len() > 3 {
         let m = idx.len();
         let ear = (0..m).find(|&i| {
-            let (a, b, c) = (poly[idx[(i + m - 1) % m] as usize], poly[idx[i] as usize], poly[idx[(i + 1) % m] as usize]);
+            let (a, b, c) =
+                (poly[idx[(i + m - 1) % m] as usize], poly[idx[i] as usize], poly[idx[(i + 1) % m] as usize]);
             orient(a, b, c) > 0.0
                 && idx.iter().all(|&k| {
                     let p = poly[k as usize];
-                    p == a || p == b || p == c || !(orient(a, b, p) >= 0.0 && orient(b, c, p) >= 0.0 && orient(c, a, p) >= 0.0)
+                    p == a
+                        || p == b
+                        || p == c
+                        || !(orient(a, b, p) >= 0.0 && orient(b, c, p) >= 0.0 && orient(c, a, p) >= 0.0)
                 })
         })?;
         out.push([idx[(ear + m - 1) % m], idx[ear], idx[(ear + 1) % m]]);

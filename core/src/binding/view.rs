@@ -7,6 +7,9 @@ use super::Binding;
 use crate::curvenet::{CurvenetLayout, ScaledFrame, scaled_frames};
 use crate::error::{Error, Result};
 
+/// A curvenet's samples and per-side scaled frames in one pose.
+pub type CurvenetPose = (Vec<[f64; 3]>, Vec<[ScaledFrame; 2]>);
+
 impl Binding {
     /// The bound curvenets as analysed (neutral samples, frames, topology), in binding order.
     pub fn layouts(&self) -> &[CurvenetLayout] {
@@ -31,7 +34,7 @@ impl Binding {
         k: usize,
         posed: Option<&[[f64; 3]]>,
         rest: Option<&[[f64; 3]]>,
-    ) -> Result<(Vec<[f64; 3]>, Vec<[ScaledFrame; 2]>)> {
+    ) -> Result<CurvenetPose> {
         let layout = self.layouts.get(k).ok_or(Error::IndexOutOfRange {
             what: "curvenet pose request",
             index: 0,

@@ -221,7 +221,12 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
 /// paper's smallest rotation of the tangent alone is not (it loses any
 /// rotation about the tangent, e.g. tilting a ring). A straight curve has no
 /// vector area and keeps tangent-only frames (the paper's rule).
-fn isolated_curve_frames(samples: &[[f64; 3]], curve_samples: &[u32], segs: std::ops::Range<usize>, out: &mut [[ScaledFrame; 2]]) {
+fn isolated_curve_frames(
+    samples: &[[f64; 3]],
+    curve_samples: &[u32],
+    segs: std::ops::Range<usize>,
+    out: &mut [[ScaledFrame; 2]],
+) {
     let pts = || curve_samples.iter().map(|&i| v3(samples[i as usize]));
     let Some(o) = pts().next() else { return };
     let mut area = DVec3::ZERO;

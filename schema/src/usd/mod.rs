@@ -19,8 +19,8 @@ mod read;
 mod value;
 mod write;
 pub use write::{
-    LayerFormat, PointsOverrides, PrimPoints, ReadOverridesError, WriteError, decode_points_overrides, encode_points_overrides,
-    read_points_overrides, write_points_overrides,
+    LayerFormat, PointsOverrides, PrimPoints, ReadOverridesError, WriteError, decode_points_overrides,
+    encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
 pub use error::UsdError;

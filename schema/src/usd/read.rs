@@ -55,9 +55,7 @@ impl Stage {
 
     /// The authored `startTimeCode`/`endTimeCode`, if both are authored.
     pub fn time_code_range(&self) -> Option<(f64, f64)> {
-        self.stage
-            .has_authored_time_code_range()
-            .then(|| (self.stage.start_time_code(), self.stage.end_time_code()))
+        self.stage.has_authored_time_code_range().then(|| (self.stage.start_time_code(), self.stage.end_time_code()))
     }
 
     fn all_prims(&self) -> Result<Vec<sdf::Path>> {
@@ -141,17 +139,14 @@ impl Stage {
     }
 
     fn index_array(&self, prim: &usd::Prim, name: &str, v: &Value, len: usize) -> Result<Vec<u32>> {
-        let ints = value::ints(v)
-            .ok_or_else(|| UsdError::contract(prim.path(), name, format!("has type {}, expected int[]", value::kind(v))))?;
+        let ints = value::ints(v).ok_or_else(|| {
+            UsdError::contract(prim.path(), name, format!("has type {}, expected int[]", value::kind(v)))
+        })?;
         ints.iter()
             .enumerate()
             .map(|(i, &x)| {
                 if x < 0 || x as u64 >= len as u64 {
-                    Err(UsdError::contract(
-                        prim.path(),
-                        name,
-                        format!("entry {i} is {x}, outside 0..{len}"),
-                    ))
+                    Err(UsdError::contract(prim.path(), name, format!("entry {i} is {x}, outside 0..{len}")))
                 } else {
                     Ok(x as u32)
                 }
@@ -198,7 +193,11 @@ impl Stage {
                     }
                 }
                 other => {
-                    return Err(UsdError::contract(path, "orientation", format!("is {other:?}, expected rightHanded or leftHanded")));
+                    return Err(UsdError::contract(
+                        path,
+                        "orientation",
+                        format!("is {other:?}, expected rightHanded or leftHanded"),
+                    ));
                 }
             }
         }
@@ -206,7 +205,11 @@ impl Stage {
             Some(v) => {
                 let p = self.points_value(&prim, PROJECTION, &v)?;
                 if p.len() != n {
-                    return Err(UsdError::contract(path, PROJECTION, format!("has {} points, the mesh has {n}", p.len())));
+                    return Err(UsdError::contract(
+                        path,
+                        PROJECTION,
+                        format!("has {} points, the mesh has {n}", p.len()),
+                    ));
                 }
                 p
             }
@@ -228,7 +231,8 @@ impl Stage {
     }
 
     fn targets(&self, prim: &usd::Prim, rel: &str) -> Result<Vec<String>> {
-        let targets = prim.relationship(rel).targets().map_err(|e| UsdError::contract(prim.path(), rel, e.to_string()))?;
+        let targets =
+            prim.relationship(rel).targets().map_err(|e| UsdError::contract(prim.path(), rel, e.to_string()))?;
         Ok(targets.iter().map(|t| t.as_str().to_string()).collect())
     }
 
@@ -267,14 +271,17 @@ impl Stage {
         }
         let pool_v = self.required(&prim, CV, None)?;
         let pool = self.points_value(&prim, CV, &pool_v)?;
-        let indices_v = self
-            .static_value(&prim, CV_INDICES)?
-            .ok_or_else(|| UsdError::contract(path, CV_INDICES, "is missing"))?;
+        let indices_v =
+            self.static_value(&prim, CV_INDICES)?.ok_or_else(|| UsdError::contract(path, CV_INDICES, "is missing"))?;
         let indices = self.index_array(&prim, CV_INDICES, &indices_v, pool.len())?;
         if let Some(v) = self.static_value(&prim, "curveVertexCounts")? {
             let counts = value::ints(&v).unwrap_or_default();
             if let Some(i) = counts.iter().position(|&c| c != 4) {
-                return Err(UsdError::contract(path, "curveVertexCounts", format!("entry {i} is {}, every spline needs 4", counts[i])));
+                return Err(UsdError::contract(
+                    path,
+                    "curveVertexCounts",
+                    format!("entry {i} is {}, every spline needs 4", counts[i]),
+                ));
             }
             if counts.len() * 4 != indices.len() {
                 return Err(UsdError::contract(
@@ -285,7 +292,11 @@ impl Stage {
             }
         }
         if indices.len() % 4 != 0 {
-            return Err(UsdError::contract(path, CV_INDICES, format!("has {} entries, not a multiple of 4", indices.len())));
+            return Err(UsdError::contract(
+                path,
+                CV_INDICES,
+                format!("has {} entries, not a multiple of 4", indices.len()),
+            ));
         }
         let splines = indices.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
         let sample_density = match self.value(&prim, DENSITY, None)? {
@@ -356,7 +367,11 @@ impl Stage {
         let expected = point_indices.as_ref().map_or(n_points, Vec::len);
         if offsets.len() != expected {
             let why = if point_indices.is_some() { "pointIndices has" } else { "the mesh has" };
-            return Err(UsdError::contract(path, "offsets", format!("has {} entries, {why} {expected}", offsets.len())));
+            return Err(UsdError::contract(
+                path,
+                "offsets",
+                format!("has {} entries, {why} {expected}", offsets.len()),
+            ));
         }
         let mut inbetweens = Vec::new();
         let props = prim.authored_property_names().map_err(|e| UsdError::contract(path, "", e.to_string()))?;
@@ -409,9 +424,11 @@ impl Stage {
         let Some(anim_path) = &mesh.blend_shape_animation else { return Ok(weights) };
         let anim = self.prim(anim_path)?;
         let Some(names_v) = self.value(&anim, "blendShapes", None)? else { return Ok(weights) };
-        let names = value::tokens(&names_v).ok_or_else(|| UsdError::contract(anim_path, "blendShapes", "is not a token[]"))?;
+        let names =
+            value::tokens(&names_v).ok_or_else(|| UsdError::contract(anim_path, "blendShapes", "is not a token[]"))?;
         let Some(w_v) = self.value(&anim, "blendShapeWeights", time)? else { return Ok(weights) };
-        let w = value::floats(&w_v).ok_or_else(|| UsdError::contract(anim_path, "blendShapeWeights", "is not a float[]"))?;
+        let w = value::floats(&w_v)
+            .ok_or_else(|| UsdError::contract(anim_path, "blendShapeWeights", "is not a float[]"))?;
         if w.len() != names.len() {
             return Err(UsdError::contract(
                 anim_path,
@@ -421,7 +438,11 @@ impl Stage {
         }
         for (name, &x) in names.iter().zip(&w) {
             if !x.is_finite() {
-                return Err(UsdError::contract(anim_path, "blendShapeWeights", format!("weight of {name:?} is {x}{}", at(time))));
+                return Err(UsdError::contract(
+                    anim_path,
+                    "blendShapeWeights",
+                    format!("weight of {name:?} is {x}{}", at(time)),
+                ));
             }
             if let Some(k) = mesh.blend_shapes.iter().position(|s| &s.name == name) {
                 weights[k] = x;

@@ -158,7 +158,12 @@ fn encode_layer(data: &sdf::Data, format: LayerFormat, sink: &mut dyn sdf::Write
 /// extension; see [`points_overrides_data`]), atomically: a temporary file in
 /// the same directory, synced, then renamed over `path`. Nothing is left
 /// behind on failure.
-pub fn write_points_overrides(path: &Path, prims: Vec<PrimPoints>, time_range: (f64, f64), doc: &str) -> Result<(), WriteError> {
+pub fn write_points_overrides(
+    path: &Path,
+    prims: Vec<PrimPoints>,
+    time_range: (f64, f64),
+    doc: &str,
+) -> Result<(), WriteError> {
     let format = LayerFormat::from_path(path)?;
     let data = points_overrides_data(prims, time_range, doc)?;
     write_atomically(path, |file| encode_layer(&data, format, file))
@@ -340,16 +345,22 @@ fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Resul
                 only_fields(&spec, &[sdf::FieldKey::Specifier.as_str(), children_key, properties_key])?;
                 match field(&spec, sdf::FieldKey::Specifier.as_str())? {
                     Some(Value::Specifier(sdf::Specifier::Over)) => {}
-                    Some(v) => return Err(not_a_bake(&spec, format!("specifier {v:?}: a bake holds over opinions only"))),
+                    Some(v) => {
+                        return Err(not_a_bake(&spec, format!("specifier {v:?}: a bake holds over opinions only")));
+                    }
                     None => return Err(not_a_bake(&spec, "no specifier: a bake holds over opinions only".into())),
                 }
             }
-            Some(sdf::SpecType::Attribute) if spec.split_property().is_some_and(|(_, name)| name == POINTS) => points_attrs += 1,
+            Some(sdf::SpecType::Attribute) if spec.split_property().is_some_and(|(_, name)| name == POINTS) => {
+                points_attrs += 1
+            }
             Some(sdf::SpecType::Attribute) => {
                 let attr = spec.split_property().map_or("", |(_, name)| name);
                 return Err(not_a_bake(&spec, format!("attribute {attr}: a bake writes {POINTS} only")));
             }
-            other => return Err(not_a_bake(&spec, format!("a {other:?} spec: a bake holds prims and their points only"))),
+            other => {
+                return Err(not_a_bake(&spec, format!("a {other:?} spec: a bake holds prims and their points only")));
+            }
         }
     }
 
@@ -374,7 +385,9 @@ fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Resul
         reached += 1;
         let properties = names(&parent, properties_key)?;
         match properties.as_slice() {
-            [] if children.is_empty() => return Err(not_a_bake(&parent, "an over with neither points nor children".into())),
+            [] if children.is_empty() => {
+                return Err(not_a_bake(&parent, "an over with neither points nor children".into()));
+            }
             [] => {}
             [p] if p == POINTS => prims.push(read_points(name, data, &parent, time_range)?),
             _ => return Err(not_a_bake(&parent, format!("properties {properties:?}: a bake writes {POINTS} only"))),
@@ -391,7 +404,12 @@ fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Resul
 }
 
 /// One prim's `points` attribute as the writer authors it.
-fn read_points(name: &str, data: &dyn sdf::AbstractData, prim: &sdf::Path, range: (f64, f64)) -> Result<PrimPoints, ReadOverridesError> {
+fn read_points(
+    name: &str,
+    data: &dyn sdf::AbstractData,
+    prim: &sdf::Path,
+    range: (f64, f64),
+) -> Result<PrimPoints, ReadOverridesError> {
     let attr = prim.append_property(POINTS).map_err(|e| ReadOverridesError::NotABake {
         path: name.to_string(),
         spec: prim.as_str().to_string(),
@@ -441,7 +459,10 @@ fn read_points(name: &str, data: &dyn sdf::AbstractData, prim: &sdf::Path, range
     let mut samples: Vec<(f64, Vec<[f32; 3]>)> = Vec::with_capacity(map.len());
     for (t, value) in map {
         if !(t >= range.0 && t <= range.1) {
-            return Err(not_a_bake(format!("a sample at time code {t}, outside startTimeCode..endTimeCode {}..{}", range.0, range.1)));
+            return Err(not_a_bake(format!(
+                "a sample at time code {t}, outside startTimeCode..endTimeCode {}..{}",
+                range.0, range.1
+            )));
         }
         let Value::Vec3fVec(points) = value else {
             return Err(not_a_bake(format!("the sample at time code {t} is not point3f[]")));
@@ -533,8 +554,10 @@ mod tests {
         let bad = vec![PrimPoints { prim: "not a path".into(), samples: vec![(1.0, vec![])] }];
         let e = write_points_overrides(&dir.join("out.usda"), bad, (1.0, 1.0), "").unwrap_err();
         assert!(matches!(e, WriteError::Content { .. }), "{e}");
-        let e = write_atomically(&dir.join("out.usda"), |_| Err(WriteError::Encode { format: "usda", message: "boom".into() }))
-            .unwrap_err();
+        let e = write_atomically(&dir.join("out.usda"), |_| {
+            Err(WriteError::Encode { format: "usda", message: "boom".into() })
+        })
+        .unwrap_err();
         assert!(!e.is_io());
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
         std::fs::remove_dir_all(&dir).unwrap();
@@ -543,8 +566,14 @@ mod tests {
     #[test]
     fn layers_read_back_as_written_and_rewrite_to_the_same_bytes() {
         let prims = vec![
-            PrimPoints { prim: "/B/Mesh".into(), samples: vec![(3.0, vec![[1.5, -2.0, 0.25]; 4]), (4.0, vec![[0.0; 3]; 4])] },
-            PrimPoints { prim: "/A/X/Mesh".into(), samples: vec![(3.0, vec![[1e-7, 2.0, 3.0]]), (4.0, vec![[f32::MAX, -0.0, 1.0]])] },
+            PrimPoints {
+                prim: "/B/Mesh".into(),
+                samples: vec![(3.0, vec![[1.5, -2.0, 0.25]; 4]), (4.0, vec![[0.0; 3]; 4])],
+            },
+            PrimPoints {
+                prim: "/A/X/Mesh".into(),
+                samples: vec![(3.0, vec![[1e-7, 2.0, 3.0]]), (4.0, vec![[f32::MAX, -0.0, 1.0]])],
+            },
         ];
         for format in [LayerFormat::Usda, LayerFormat::Usdc] {
             let bytes = encode_points_overrides(prims.clone(), (3.0, 4.0), "a doc \"quoted\"", format).unwrap();
@@ -559,7 +588,8 @@ mod tests {
 
     #[test]
     fn layers_a_bake_never_writes_are_refused_naming_the_spec() {
-        let good = String::from_utf8(encode_points_overrides(prims(), (1.0, 2.0), "d", LayerFormat::Usda).unwrap()).unwrap();
+        let good =
+            String::from_utf8(encode_points_overrides(prims(), (1.0, 2.0), "d", LayerFormat::Usda).unwrap()).unwrap();
         let refused = |text: &str, spec: &str, problem: &str| {
             let e = decode_points_overrides("x.usda", text.as_bytes().to_vec()).unwrap_err();
             let ReadOverridesError::NotABake { path, spec: s, problem: p } = &e else { panic!("{e}") };
@@ -568,8 +598,16 @@ mod tests {
         };
         refused(&good.replacen("over \"Mesh\"", "def Mesh \"Mesh\"", 1), "/A/B/Mesh", "type");
         refused(&good.replacen("over \"B\"", "def \"B\"", 1), "/A/B", "specifier");
-        refused(&good.replacen("startTimeCode = 1.0", "startTimeCode = 1.0\n    defaultPrim = \"A\"", 1), "/", "defaultPrim");
-        refused(&good.replacen("point3f[] points", "float3[] extent = [(0, 0, 0)]\n        point3f[] points", 1), "/A/B/Mesh.extent", "extent");
+        refused(
+            &good.replacen("startTimeCode = 1.0", "startTimeCode = 1.0\n    defaultPrim = \"A\"", 1),
+            "/",
+            "defaultPrim",
+        );
+        refused(
+            &good.replacen("point3f[] points", "float3[] extent = [(0, 0, 0)]\n        point3f[] points", 1),
+            "/A/B/Mesh.extent",
+            "extent",
+        );
         refused(&good.replacen("endTimeCode = 2.0", "endTimeCode = 1.5", 1), "/A/B/Mesh.points", "outside");
         // The sample at 2 loses its first point.
         let at = good.find("2.0: [").expect("a sample at 2") + "2.0: [".len();
@@ -579,6 +617,9 @@ mod tests {
         let e = decode_points_overrides("y.usda", b"not usd".to_vec()).unwrap_err();
         assert!(matches!(e, ReadOverridesError::Decode { .. }) && e.to_string().starts_with("y.usda: "), "{e}");
         let e = read_points_overrides(Path::new("/no/such/bake.usdc")).unwrap_err();
-        assert!(matches!(&e, ReadOverridesError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound), "{e}");
+        assert!(
+            matches!(&e, ReadOverridesError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+            "{e}"
+        );
     }
 }

@@ -95,7 +95,8 @@ pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
         Some((i, _)) => (&s[..i], &s[i + 1..]),
         None => (s, s),
     };
-    let int = |x: &str| x.trim().parse::<i64>().map_err(|_| format!("{x:?} is not an integer frame (expected A-B or A)"));
+    let int =
+        |x: &str| x.trim().parse::<i64>().map_err(|_| format!("{x:?} is not an integer frame (expected A-B or A)"));
     let (first, last) = (int(a)?, int(b)?);
     if first > last {
         return Err(format!("{first}-{last} is empty: the first frame must not be after the last"));
@@ -141,17 +142,17 @@ pub fn run(args: &Args) -> CliResult {
     if same_file(&args.input, &args.out) {
         return Err(CliError::Input(format!("{}: the output would replace the input", args.out.display())));
     }
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(args.threads.map_or(0, NonZeroUsize::get))
-        .build()
-        .map_err(|e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))))?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads.map_or(0, NonZeroUsize::get)).build().map_err(
+        |e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))),
+    )?;
 
     let stage = Stage::open(&args.input)?;
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs)?;
 
     let t_bind = Instant::now();
-    let jobs: Vec<MeshJob> = pool.install(|| inputs.into_par_iter().map(|(m, n, r)| bind(m, n, r)).collect::<CliResult<_>>())?;
+    let jobs: Vec<MeshJob> =
+        pool.install(|| inputs.into_par_iter().map(|(m, n, r)| bind(m, n, r)).collect::<CliResult<_>>())?;
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
         for w in job.binding.warnings() {
@@ -162,7 +163,10 @@ pub fn run(args: &Args) -> CliResult {
     // Read chunk k + 1 on this thread while chunk k solves on the pool.
     let per_frame_bytes: usize = jobs
         .iter()
-        .map(|j| 24 * (j.nets.iter().map(|n| n.pool.len()).sum::<usize>() + if j.reads_rest { j.binding.n_vertices() } else { 0 }))
+        .map(|j| {
+            24 * (j.nets.iter().map(|n| n.pool.len()).sum::<usize>()
+                + if j.reads_rest { j.binding.n_vertices() } else { 0 })
+        })
         .sum();
     let threads = pool.current_num_threads();
     let chunk = (4 * threads).min(MAX_CHUNK_FRAMES).min((CHUNK_BYTES / per_frame_bytes.max(1)).max(1));
@@ -233,7 +237,11 @@ pub fn run(args: &Args) -> CliResult {
 
 /// The frames to bake: `--frames`, else the stage's time-code range, else
 /// the union of the time samples of the meshes' points and curvenets' pools.
-pub(super) fn frames(stage: &Stage, requested: Option<FrameRange>, inputs: &[super::DeformedMesh]) -> CliResult<Vec<f64>> {
+pub(super) fn frames(
+    stage: &Stage,
+    requested: Option<FrameRange>,
+    inputs: &[super::DeformedMesh],
+) -> CliResult<Vec<f64>> {
     if let Some(r) = requested {
         return Ok((r.first..=r.last).map(|t| t as f64).collect());
     }
@@ -355,7 +363,13 @@ fn solve_chunk(
     (0..chunk.len()).map(|_| solved.by_ref().take(n).collect()).collect()
 }
 
-fn solve(job: &MeshJob, t: f64, input: &MeshFrame, ws: &mut Workspace, solve_ns: &AtomicU64) -> CliResult<Vec<[f32; 3]>> {
+fn solve(
+    job: &MeshJob,
+    t: f64,
+    input: &MeshFrame,
+    ws: &mut Workspace,
+    solve_ns: &AtomicU64,
+) -> CliResult<Vec<[f32; 3]>> {
     let t0 = Instant::now();
     let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
     let n = job.binding.n_vertices();
@@ -368,7 +382,9 @@ fn solve(job: &MeshJob, t: f64, input: &MeshFrame, ws: &mut Workspace, solve_ns:
         .deform(&frame, ws, &mut out, gradients.as_deref_mut())
         .map_err(|source| CliError::Core { context: context(), source })?;
     if let Some(g) = &gradients {
-        job.shapes.add_deformed(&input.weights, g, &mut out).map_err(|source| CliError::Core { context: context(), source })?;
+        job.shapes
+            .add_deformed(&input.weights, g, &mut out)
+            .map_err(|source| CliError::Core { context: context(), source })?;
     }
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
     Ok(out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect())

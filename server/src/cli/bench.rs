@@ -59,7 +59,9 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, Mat3, PolyMesh, SamplingOptions, Workspace};
+use curvenet_core::{
+    BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, Mat3, PolyMesh, SamplingOptions, Workspace,
+};
 use curvenet_schema::CurvenetData;
 use curvenet_schema::usd::Stage;
 use rayon::prelude::*;
@@ -238,7 +240,10 @@ fn fixture_file(dir: &Path, mesh: &str) -> CliResult<PathBuf> {
             return Ok(p);
         }
     }
-    Err(CliError::Input(format!("--meshes: no fixture `{mesh}` in {} (.usda, .usdc or .usd)", dir.join("hand").display())))
+    Err(CliError::Input(format!(
+        "--meshes: no fixture `{mesh}` in {} (.usda, .usdc or .usd)",
+        dir.join("hand").display()
+    )))
 }
 
 fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_ {
@@ -258,12 +263,14 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
     let load_ms = ms_since(t);
     let context = format!("{} {}", file.display(), mesh.path);
     let points = &mesh.projection_points;
-    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, points.len()).map_err(core_err(&context))?;
+    let topology =
+        PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, points.len()).map_err(core_err(&context))?;
     let curvenets: Vec<Curvenet> =
         nets.iter().map(|n| Curvenet::new(&n.splines, &n.pool).map_err(core_err(&n.path))).collect::<CliResult<_>>()?;
 
     // Bindings.
-    let (mut analysis, mut surface, mut cutting, mut assembly, mut factor, mut other) = (vec![], vec![], vec![], vec![], vec![], vec![]);
+    let (mut analysis, mut surface, mut cutting, mut assembly, mut factor, mut other) =
+        (vec![], vec![], vec![], vec![], vec![], vec![]);
     let mut total = Series::default();
     let mut bound = None;
     for _ in 0..repeats {
@@ -335,9 +342,11 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
 
     // Throughput across frames.
     let jobs = frames.max(8 * threads);
-    let serial = median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, 1)).collect::<CliResult<_>>()?);
-    let parallel =
-        median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, threads)).collect::<CliResult<_>>()?);
+    let serial =
+        median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, 1)).collect::<CliResult<_>>()?);
+    let parallel = median(
+        (0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, threads)).collect::<CliResult<_>>()?,
+    );
 
     let solve_ms = deform_t.wall();
     let binding_ms = total.wall();
@@ -705,7 +714,16 @@ fn text_report(r: &Report) -> String {
         let _ = writeln!(
             s,
             "{:<w$} {:>8.2} {:>8.2} {:>9.2} {:>8.2} {:>7.2} {:>8.2} {:>10} {:>14.2} {:>9.1}",
-            m.mesh, m.surface_ms, m.cutting_ms, m.assembly_ms, m.factor_ms, m.binding_other_ms, m.binding_ms, cpu, m.analysis_ms, m.load_ms
+            m.mesh,
+            m.surface_ms,
+            m.cutting_ms,
+            m.assembly_ms,
+            m.factor_ms,
+            m.binding_other_ms,
+            m.binding_ms,
+            cpu,
+            m.analysis_ms,
+            m.load_ms
         );
     }
     let _ = writeln!(s);
@@ -738,7 +756,19 @@ fn text_report(r: &Report) -> String {
     let _ = writeln!(
         s,
         "{:<w$} {:<5} {:>8} {:>8} {:>8} {:>7} {:>7} {:>9} {:>7} {:>7} {:>7} {:>10} {:>8}",
-        "mesh", "clock", "deform", "min", "max", "tri9", "tri3", "tri share", "curve", "rest", "ref", "deform/ref", "tri/ref"
+        "mesh",
+        "clock",
+        "deform",
+        "min",
+        "max",
+        "tri9",
+        "tri3",
+        "tri share",
+        "curve",
+        "rest",
+        "ref",
+        "deform/ref",
+        "tri/ref"
     );
     for m in &r.meshes {
         let _ = writeln!(

@@ -297,14 +297,15 @@ fn build(stage: &Stage, args: &Args) -> CliResult<Report> {
         meshes.retain(|m| &m.path == prim);
         curvenets.retain(|c| &c.path == prim);
         if meshes.is_empty() && curvenets.is_empty() {
-            return Err(CliError::Input(format!("{prim}: no deformed mesh or curvenet at this path in {}", stage.path())));
+            return Err(CliError::Input(format!(
+                "{prim}: no deformed mesh or curvenet at this path in {}",
+                stage.path()
+            )));
         }
     }
     let mut warnings = Vec::new();
-    let mut mesh_reports = meshes
-        .iter()
-        .map(|m| mesh_report(stage, m, args.time, &mut warnings))
-        .collect::<CliResult<Vec<_>>>()?;
+    let mut mesh_reports =
+        meshes.iter().map(|m| mesh_report(stage, m, args.time, &mut warnings)).collect::<CliResult<Vec<_>>>()?;
     if args.bind {
         for (report, m) in mesh_reports.iter_mut().zip(&meshes) {
             let b = binding_report(stage, m)?;
@@ -312,7 +313,8 @@ fn build(stage: &Stage, args: &Args) -> CliResult<Report> {
             report.binding = Some(b);
         }
     }
-    let mut surfaces: Vec<Option<Result<Surface, curvenet_core::Error>>> = (0..all_meshes.len()).map(|_| None).collect();
+    let mut surfaces: Vec<Option<Result<Surface, curvenet_core::Error>>> =
+        (0..all_meshes.len()).map(|_| None).collect();
     let mut curvenet_reports = Vec::with_capacity(curvenets.len());
     for c in &curvenets {
         let r = curvenet_report(stage, c, args.time, &all_meshes, &mut surfaces)?;
@@ -417,7 +419,9 @@ fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
                 error: None,
             }
         }
-        Err(e) => BindingReport { stats: None, timings_ms: None, total_ms, warnings: Vec::new(), error: Some(e.to_string()) },
+        Err(e) => {
+            BindingReport { stats: None, timings_ms: None, total_ms, warnings: Vec::new(), error: Some(e.to_string()) }
+        }
     })
 }
 
@@ -578,7 +582,8 @@ fn analyse(
         *intersections_by_valence.entry(i.valence).or_insert(0) += 1;
     }
 
-    let dist = |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    let dist =
+        |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
     let mut curves = Vec::with_capacity(topology.curves().len());
     for (k, curve) in topology.curves().iter().enumerate() {
         let segs = sampling.curve_segments(k);
@@ -616,10 +621,8 @@ fn analyse(
     }
 
     // Distance of every neutral sample from the surface, worst per spline.
-    let distances = samples
-        .iter()
-        .map(|&p| surface.bvh.closest_point(p).map(|h| h.distance))
-        .collect::<Result<Vec<f64>, _>>()?;
+    let distances =
+        samples.iter().map(|&p| surface.bvh.closest_point(p).map(|h| h.distance)).collect::<Result<Vec<f64>, _>>()?;
     let limit = FAR_FROM_SURFACE * surface.diagonal;
     let (mut max_distance, mut max_spline) = (0.0f64, 0u32);
     for s in 0..c.splines.len() {
@@ -698,8 +701,15 @@ fn text(r: &Report) -> String {
         let _ = writeln!(
             s,
             "mesh {}: {} vertices, {} faces ({} triangles, {} quads, {} polygons), mean edge {:.4}, diagonal {:.4}, {} rest-pose frames",
-            m.path, m.vertices, m.faces, m.face_sizes.triangles, m.face_sizes.quads, m.face_sizes.polygons,
-            m.mean_edge_length, m.bounding_box_diagonal, m.rest_pose_frames
+            m.path,
+            m.vertices,
+            m.faces,
+            m.face_sizes.triangles,
+            m.face_sizes.quads,
+            m.face_sizes.polygons,
+            m.mean_edge_length,
+            m.bounding_box_diagonal,
+            m.rest_pose_frames
         );
         let _ = writeln!(s, "  curvenets: {}", m.curvenets.join(", "));
         if let Some(b) = &m.binding {
@@ -710,7 +720,11 @@ fn text(r: &Report) -> String {
             let _ = writeln!(
                 s,
                 "  blend shape {:?} ({}): {} offsets{}, inbetweens at {:?}{w}",
-                b.name, b.prim, b.offsets, if b.sparse { " (sparse)" } else { "" }, b.inbetween_weights
+                b.name,
+                b.prim,
+                b.offsets,
+                if b.sparse { " (sparse)" } else { "" },
+                b.inbetween_weights
             );
         }
     }

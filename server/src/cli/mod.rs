@@ -53,7 +53,8 @@ pub fn bind_mesh(
     use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
     let core = |context: String| move |source| CliError::Core { context, source };
     let n = mesh.projection_points.len();
-    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).map_err(core(mesh.path.clone()))?;
+    let topology =
+        PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).map_err(core(mesh.path.clone()))?;
     // One surface (validation, face planes, closest-point BVH) serves the
     // curvenets' sampling and the binding.
     let t0 = std::time::Instant::now();
@@ -70,8 +71,11 @@ pub fn bind_mesh(
         })
         .collect::<CliResult<Vec<_>>>()?;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms)
-        .map_err(core(format!("{} (binding {})", mesh.path, net_list(nets))))
+    Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms).map_err(core(format!(
+        "{} (binding {})",
+        mesh.path,
+        net_list(nets)
+    )))
 }
 
 /// `/A/Net, /B/Net`: the curvenets' paths for messages.
@@ -96,7 +100,8 @@ pub fn deformed_meshes(stage: &curvenet_schema::usd::Stage, purpose: &str) -> Cl
     let mut inputs = Vec::with_capacity(meshes.len());
     for mesh in meshes {
         let nets = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
-        let reads_rest = !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
+        let reads_rest =
+            !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None)? != mesh.projection_points;
         inputs.push((mesh, nets, reads_rest));
     }
     Ok(inputs)
@@ -113,8 +118,14 @@ pub fn check_output_dir(out: &std::path::Path) -> CliResult {
         Ok(m) if m.is_dir() => Ok(()),
         Ok(_) => Err(CliError::Io {
             context: format!("cannot write {}", out.display()),
-            source: std::io::Error::new(std::io::ErrorKind::NotADirectory, format!("{} is not a directory", dir.display())),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotADirectory,
+                format!("{} is not a directory", dir.display()),
+            ),
         }),
-        Err(source) => Err(CliError::Io { context: format!("cannot write {}: directory {}", out.display(), dir.display()), source }),
+        Err(source) => Err(CliError::Io {
+            context: format!("cannot write {}: directory {}", out.display(), dir.display()),
+            source,
+        }),
     }
 }

@@ -81,7 +81,10 @@ pub fn run(args: &Args) -> CliResult {
         healthcheck(&args.addr);
     }
     if !(args.drain_timeout.is_finite() && args.drain_timeout >= 0.0) {
-        return Err(CliError::Input(format!("--drain-timeout must be a non-negative number of seconds, got {}", args.drain_timeout)));
+        return Err(CliError::Input(format!(
+            "--drain-timeout must be a non-negative number of seconds, got {}",
+            args.drain_timeout
+        )));
     }
     let filter = std::env::var("CURVENET_LOG").or_else(|_| std::env::var("RUST_LOG")).unwrap_or_else(|_| "info".into());
     let _ = tracing_subscriber::fmt()
@@ -166,7 +169,9 @@ fn healthcheck(addr: &str) -> ! {
         let _ = s.set_read_timeout(Some(Duration::from_secs(3)));
         let request = format!("GET /healthz HTTP/1.1\r\nHost: {a}\r\nConnection: close\r\n\r\n");
         let mut answer = String::new();
-        s.write_all(request.as_bytes()).is_ok() && s.read_to_string(&mut answer).is_ok() && answer.starts_with("HTTP/1.1 200")
+        s.write_all(request.as_bytes()).is_ok()
+            && s.read_to_string(&mut answer).is_ok()
+            && answer.starts_with("HTTP/1.1 200")
     });
     if !ok {
         eprintln!("curvenet: healthcheck: http://{addr}/healthz did not answer 200");
@@ -183,7 +188,12 @@ fn baker() -> Baker {
         args: super::bake::Args,
     }
     Arc::new(|job: &BakeJob| {
-        let mut argv = vec!["bake".into(), job.stage.clone().into_os_string(), "--out".into(), job.output.clone().into_os_string()];
+        let mut argv = vec![
+            "bake".into(),
+            job.stage.clone().into_os_string(),
+            "--out".into(),
+            job.output.clone().into_os_string(),
+        ];
         if let Some(f) = &job.frames {
             argv.push("--frames".into());
             argv.push(f.into());
@@ -217,7 +227,9 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 let stage = Stage::open(&owned)?;
                 let inputs = super::deformed_meshes(&stage, "view")?;
                 let animated = stage.time_code_range().is_some()
-                    || inputs.iter().any(|(m, nets, _)| !m.rest_sample_times.is_empty() || nets.iter().any(|n| !n.sample_times.is_empty()));
+                    || inputs.iter().any(|(m, nets, _)| {
+                        !m.rest_sample_times.is_empty() || nets.iter().any(|n| !n.sample_times.is_empty())
+                    });
                 let times = if animated { super::bake::frames(&stage, None, &inputs)? } else { vec![0.0] };
                 let name = stage.path().to_string();
                 Ok((stage, (inputs, times, name)))
@@ -241,9 +253,9 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             }
         })
         .map_err(|e| CliError::Io { context: "starting the stage reader thread".into(), source: e })?;
-    let (inputs, times, name) = setup_rx
-        .recv()
-        .map_err(|_| CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display())))??;
+    let (inputs, times, name) = setup_rx.recv().map_err(|_| {
+        CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display()))
+    })??;
     let query_tx = std::sync::Mutex::new(query_tx);
     let query_tx = Arc::new(query_tx);
     Ok(inputs
@@ -257,11 +269,22 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                     return Err(format!("frame {k} does not exist ({n_frames} frames)"));
                 }
                 let (tx, rx) = std::sync::mpsc::channel();
-                queries.lock().unwrap_or_else(|e| e.into_inner()).send((m, k, tx)).map_err(|_| "the stage reader has stopped".to_string())?;
+                queries
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .send((m, k, tx))
+                    .map_err(|_| "the stage reader has stopped".to_string())?;
                 rx.recv().map_err(|_| "the stage reader has stopped".to_string())?
             });
             let curvenets = nets.iter().map(|n| n.path.clone()).collect();
-            ViewerStage::new(name.clone(), mesh.path.clone(), curvenets, times.clone(), BindingRequest::from_stage(&mesh, &nets), frame)
+            ViewerStage::new(
+                name.clone(),
+                mesh.path.clone(),
+                curvenets,
+                times.clone(),
+                BindingRequest::from_stage(&mesh, &nets),
+                frame,
+            )
         })
         .collect())
 }
@@ -269,8 +292,18 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
 /// One mesh's frame at `time`, as the bake reads it: the posed pools (none
 /// for a curvenet without time samples), the rest pose when the mesh's
 /// points are animated or differ from the projection pose, the blend-shape weights.
-fn read_frame(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData], reads_rest: bool, time: f64) -> Result<FrameRequest, String> {
-    let posed = nets.iter().map(|n| stage.posed_pool(n, Some(time))).collect::<Result<Vec<_>, _>>().map_err(|e| e.to_string())?;
+fn read_frame(
+    stage: &Stage,
+    mesh: &MeshData,
+    nets: &[CurvenetData],
+    reads_rest: bool,
+    time: f64,
+) -> Result<FrameRequest, String> {
+    let posed = nets
+        .iter()
+        .map(|n| stage.posed_pool(n, Some(time)))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
     let rest = if reads_rest { Some(stage.rest_points(mesh, Some(time)).map_err(|e| e.to_string())?) } else { None };
     let weights = if mesh.blend_shapes.is_empty() {
         None

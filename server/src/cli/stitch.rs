@@ -20,7 +20,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use curvenet_schema::usd::{
-    LayerFormat, PointsOverrides, PrimPoints, ReadOverridesError, WriteError, read_points_overrides, write_points_overrides,
+    LayerFormat, PointsOverrides, PrimPoints, ReadOverridesError, WriteError, read_points_overrides,
+    write_points_overrides,
 };
 
 use super::bake::{FrameRange, parse_frames};
@@ -156,7 +157,9 @@ pub fn stitch(names: &[PathBuf], chunks: &[PointsOverrides], frames: Option<Fram
             let differs = a.iter().find(|p| !b.contains(p)).map(|p| format!("{p} is in {} only", name(0)));
             let differs = differs
                 .or_else(|| b.iter().find(|p| !a.contains(p)).map(|p| format!("{p} is in {} only", name(i))))
-                .unwrap_or_else(|| format!("the prims are in a different order ({} vs {})", a.join(", "), b.join(", ")));
+                .unwrap_or_else(|| {
+                    format!("the prims are in a different order ({} vs {})", a.join(", "), b.join(", "))
+                });
             return Err(CliError::Input(format!("{} and {} bake different prims: {differs}", name(0), name(i))));
         }
         for (p, q) in first.prims.iter().zip(&chunk.prims) {
@@ -177,9 +180,9 @@ pub fn stitch(names: &[PathBuf], chunks: &[PointsOverrides], frames: Option<Fram
     // The time range, and every integer frame in it covered by some chunk.
     let range = match frames {
         Some(r) => (r.first as f64, r.last as f64),
-        None => {
-            chunks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c.time_range.0), b.max(c.time_range.1)))
-        }
+        None => chunks
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), c| (a.min(c.time_range.0), b.max(c.time_range.1))),
     };
     let keep = |t: f64| t >= range.0 && t <= range.1;
     if range.1 - range.0 >= MAX_FRAMES {
@@ -192,8 +195,9 @@ pub fn stitch(names: &[PathBuf], chunks: &[PointsOverrides], frames: Option<Fram
         // The first run of consecutive uncovered frames.
         let l = uncovered.iter().zip(f..).take_while(|(g, h)| **g == *h).count() as i64 + f - 1;
         let span = if l > f { format!("frames {f}-{l} are") } else { format!("frame {f} is") };
-        let mut have: Vec<String> =
-            (0..chunks.len()).map(|i| format!("{} ({}..{})", name(i), chunks[i].time_range.0, chunks[i].time_range.1)).collect();
+        let mut have: Vec<String> = (0..chunks.len())
+            .map(|i| format!("{} ({}..{})", name(i), chunks[i].time_range.0, chunks[i].time_range.1))
+            .collect();
         have.sort();
         return Err(CliError::Input(format!(
             "{span} in no chunk (a chunk is missing) of time codes {}..{}; the chunks: {}",
@@ -233,7 +237,10 @@ pub fn stitch(names: &[PathBuf], chunks: &[PointsOverrides], frames: Option<Fram
             }
         }
         if merged.is_empty() {
-            return Err(CliError::Input(format!("no chunk holds a sample of {prim} in time codes {}..{}", range.0, range.1)));
+            return Err(CliError::Input(format!(
+                "no chunk holds a sample of {prim} in time codes {}..{}",
+                range.0, range.1
+            )));
         }
         let samples = merged.into_iter().map(|(t, (p, _))| (t.0, p.to_vec())).collect();
         prims.push(PrimPoints { prim: prim.clone(), samples });

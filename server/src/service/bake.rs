@@ -90,7 +90,8 @@ pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErr
     })?;
     let out = parent.join(name);
     let resolved = match std::fs::symlink_metadata(&out) {
-        Ok(_) => std::fs::canonicalize(&out).map_err(|e| ServiceError::new(Code::BakeFailed, format!("output {path}: {e}")))?,
+        Ok(_) => std::fs::canonicalize(&out)
+            .map_err(|e| ServiceError::new(Code::BakeFailed, format!("output {path}: {e}")))?,
         Err(_) => out,
     };
     if !inside(&resolved, roots) {

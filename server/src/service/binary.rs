@@ -16,13 +16,17 @@ fn malformed(message: impl Into<String>) -> ServiceError {
 /// Splits a binary body into its JSON header and the data after it.
 fn split(body: &[u8]) -> Result<(serde_json::Value, &[u8]), ServiceError> {
     if body.len() < 4 {
-        return Err(malformed(format!("the body has {} bytes; it must start with a u32 little-endian header length", body.len())));
+        return Err(malformed(format!(
+            "the body has {} bytes; it must start with a u32 little-endian header length",
+            body.len()
+        )));
     }
     let h = u32::from_le_bytes([body[0], body[1], body[2], body[3]]) as usize;
     if body.len() - 4 < h {
         return Err(malformed(format!("the header length is {h} bytes but only {} bytes follow it", body.len() - 4)));
     }
-    let header = serde_json::from_slice(&body[4..4 + h]).map_err(|e| malformed(format!("the header is not JSON: {e}")))?;
+    let header =
+        serde_json::from_slice(&body[4..4 + h]).map_err(|e| malformed(format!("the header is not JSON: {e}")))?;
     Ok((header, &body[4 + h..]))
 }
 
@@ -45,12 +49,19 @@ pub fn parse(body: &[u8]) -> Result<(Vec<Frame>, bool), ServiceError> {
     let mut frames = Vec::with_capacity(headers.len());
     for (f, h) in headers.into_iter().enumerate() {
         let ctx = |m: String| if batch { format!("frames[{f}]: {m}") } else { m };
-        let mut frame =
-            Frame { mode: h.blend_shape_mode, gradients: h.gradients, topology_hash: h.topology_hash, ..Frame::default() };
+        let mut frame = Frame {
+            mode: h.blend_shape_mode,
+            gradients: h.gradients,
+            topology_hash: h.topology_hash,
+            ..Frame::default()
+        };
         let mut posed: Vec<(usize, Vec<[f64; 3]>)> = Vec::new();
         for (a, array) in h.arrays.iter().enumerate() {
             if !matches!(array.dtype.as_str(), "f32" | "float32" | "<f4") {
-                return Err(malformed(ctx(format!("arrays[{a}] ({}) has dtype {:?}; only little-endian f32 is accepted", array.name, array.dtype))));
+                return Err(malformed(ctx(format!(
+                    "arrays[{a}] ({}) has dtype {:?}; only little-endian f32 is accepted",
+                    array.name, array.dtype
+                ))));
             }
             let (width, what) = match array.name.as_str() {
                 "posed" | "rest" => (3, "[n, 3]"),
@@ -63,7 +74,12 @@ pub fn parse(body: &[u8]) -> Result<(Vec<Frame>, bool), ServiceError> {
             };
             let rows = match (width, array.shape.as_slice()) {
                 (3, &[n, 3]) | (1, &[n]) => n,
-                _ => return Err(malformed(ctx(format!("arrays[{a}] ({}) has shape {:?}; expected {what}", array.name, array.shape)))),
+                _ => {
+                    return Err(malformed(ctx(format!(
+                        "arrays[{a}] ({}) has shape {:?}; expected {what}",
+                        array.name, array.shape
+                    ))));
+                }
             };
             let bytes = usize::try_from(rows)
                 .ok()
@@ -82,16 +98,26 @@ pub fn parse(body: &[u8]) -> Result<(Vec<Frame>, bool), ServiceError> {
             data = rest;
             match array.name.as_str() {
                 "posed" => {
-                    let k = array.index.ok_or_else(|| malformed(ctx(format!("arrays[{a}] (posed) has no index (the curvenet)"))))? as usize;
+                    let k = array
+                        .index
+                        .ok_or_else(|| malformed(ctx(format!("arrays[{a}] (posed) has no index (the curvenet)"))))?
+                        as usize;
                     if posed.iter().any(|(j, _)| *j == k) {
                         return Err(malformed(ctx(format!("arrays[{a}]: posed index {k} appears twice"))));
                     }
                     posed.push((k, points(raw)));
                 }
-                "rest" if frame.rest.is_some() => return Err(malformed(ctx(format!("arrays[{a}]: rest appears twice")))),
+                "rest" if frame.rest.is_some() => {
+                    return Err(malformed(ctx(format!("arrays[{a}]: rest appears twice"))));
+                }
                 "rest" => frame.rest = Some(points(raw)),
-                _ if frame.weights.is_some() => return Err(malformed(ctx(format!("arrays[{a}]: blend_shape_weights appears twice")))),
-                _ => frame.weights = Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect()),
+                _ if frame.weights.is_some() => {
+                    return Err(malformed(ctx(format!("arrays[{a}]: blend_shape_weights appears twice"))));
+                }
+                _ => {
+                    frame.weights =
+                        Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect())
+                }
             }
         }
         if let Some(max) = posed.iter().map(|(k, _)| *k).max() {
@@ -134,10 +160,19 @@ fn points(raw: &[u8]) -> Vec<[f64; 3]> {
 }
 
 fn response_header(s: &Solved) -> BinaryResponseHeader {
-    let mut arrays =
-        vec![BinaryArray { name: "points".into(), index: None, dtype: "f32".into(), shape: vec![s.points.len() as u64, 3] }];
+    let mut arrays = vec![BinaryArray {
+        name: "points".into(),
+        index: None,
+        dtype: "f32".into(),
+        shape: vec![s.points.len() as u64, 3],
+    }];
     if let Some(g) = &s.gradients {
-        arrays.push(BinaryArray { name: "gradients".into(), index: None, dtype: "f32".into(), shape: vec![g.len() as u64, 9] });
+        arrays.push(BinaryArray {
+            name: "gradients".into(),
+            index: None,
+            dtype: "f32".into(),
+            shape: vec![g.len() as u64, 9],
+        });
     }
     BinaryResponseHeader { arrays, solve_ms: s.solve_ms }
 }
@@ -155,7 +190,8 @@ pub fn encode(solved: &[Solved], batch: bool) -> Vec<u8> {
     while header.len() % 4 != 0 {
         header.push(b' ');
     }
-    let data: usize = solved.iter().map(|s| s.points.len() * 12 + s.gradients.as_ref().map_or(0, |g| g.len() * 36)).sum();
+    let data: usize =
+        solved.iter().map(|s| s.points.len() * 12 + s.gradients.as_ref().map_or(0, |g| g.len() * 36)).sum();
     let mut out = Vec::with_capacity(4 + header.len() + data);
     out.extend_from_slice(&(header.len() as u32).to_le_bytes());
     out.extend_from_slice(&header);

@@ -7,8 +7,8 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use curvenet_core::binding::CutOptions;
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_core::binding::surface::Surface;
+use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_core::{BindOptions, BindWarning, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, Warning};
 
@@ -32,7 +32,10 @@ impl EffectiveOptions {
         let snap = o.snap_tolerance.unwrap_or(d.snap_tolerance);
         let far = o.max_projection_distance.unwrap_or(d.max_projection_distance);
         if !(snap.is_finite() && (0.0..=0.1).contains(&snap)) {
-            return Err(ServiceError::new(Code::InvalidParameter, format!("options.snap_tolerance must be in [0, 0.1], got {snap}")));
+            return Err(ServiceError::new(
+                Code::InvalidParameter,
+                format!("options.snap_tolerance must be in [0, 0.1], got {snap}"),
+            ));
         }
         if !(far.is_finite() && far > 0.0 && far <= 10.0) {
             return Err(ServiceError::new(
@@ -76,7 +79,10 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
             if let Some(&v) = spline.iter().find(|&&v| v as usize >= c.pool.len()) {
                 return Err(ServiceError::new(
                     Code::IndexOutOfRange,
-                    format!("curvenets[{k}].splines[{s}] refers to control point {v}, but the pool has {}", c.pool.len()),
+                    format!(
+                        "curvenets[{k}].splines[{s}] refers to control point {v}, but the pool has {}",
+                        c.pool.len()
+                    ),
                 ));
             }
         }
@@ -86,13 +92,13 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
         for (i, ib) in s.inbetweens.iter().enumerate() {
             non_finite(&ib.offsets, &format!("blend_shapes[{k}].inbetweens[{i}].offsets"))?;
         }
-        if let Some(ix) = &s.point_indices {
-            if let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n) {
-                return Err(ServiceError::new(
-                    Code::IndexOutOfRange,
-                    format!("blend_shapes[{k}].point_indices[{i}] is vertex {v}, but the mesh has {n} vertices"),
-                ));
-            }
+        if let Some(ix) = &s.point_indices
+            && let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n)
+        {
+            return Err(ServiceError::new(
+                Code::IndexOutOfRange,
+                format!("blend_shapes[{k}].point_indices[{i}] is vertex {v}, but the mesh has {n} vertices"),
+            ));
         }
     }
     Ok(())
@@ -102,7 +108,9 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
 pub fn non_finite(points: &[[f64; 3]], what: &str) -> Result<(), ServiceError> {
     match points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
         None => Ok(()),
-        Some(i) => Err(ServiceError::new(Code::NonFinite, format!("{what}[{i}] has a non-finite coordinate {:?}", points[i]))),
+        Some(i) => {
+            Err(ServiceError::new(Code::NonFinite, format!("{what}[{i}] has a non-finite coordinate {:?}", points[i])))
+        }
     }
 }
 
@@ -132,7 +140,8 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
     // One surface (validation, face planes, closest-point BVH) serves the
     // curvenets' sampling and the binding.
     let t_surface = Instant::now();
-    let surface = Surface::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
+    let surface =
+        Surface::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
     let surface_ms = t_surface.elapsed().as_secs_f64() * 1e3;
     let layouts = req
         .curvenets
@@ -140,7 +149,8 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
         .enumerate()
         .map(|(k, c)| {
             let ctx = format!("curvenets[{k}]");
-            let net = Curvenet::new(&c.splines, &c.pool).map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))?;
+            let net =
+                Curvenet::new(&c.splines, &c.pool).map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))?;
             let sampling = SamplingOptions::default().with_density(c.sample_density);
             CurvenetLayout::with_closest_point(&net, surface.closest_points(), surface.mean_edge_length(), &sampling)
                 .map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))
@@ -149,8 +159,8 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
     // The surface is timed on its own (`surface_ms`), not as analysis.
     let analysis_ms = t0.elapsed().as_secs_f64() * 1e3 - surface_ms;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding =
-        Binding::with_surface(surface, &refs, &options.bind_options(), surface_ms).map_err(|e| ServiceError::core(e, Phase::Bind))?;
+    let binding = Binding::with_surface(surface, &refs, &options.bind_options(), surface_ms)
+        .map_err(|e| ServiceError::core(e, Phase::Bind))?;
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let size_bytes = estimate_bytes(&binding, shape_offsets) + (n as u64) * 24;

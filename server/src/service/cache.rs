@@ -68,7 +68,10 @@ impl Entry {
 /// shapes' offsets × 24.
 pub fn estimate_bytes(binding: &Binding, shape_offsets: usize) -> u64 {
     let s = binding.stats();
-    (s.factor_nonzeros as u64) * 12 + (s.cut_halfedges as u64) * 64 + (s.mesh_vertices as u64) * 96 + (shape_offsets as u64) * 24
+    (s.factor_nonzeros as u64) * 12
+        + (s.cut_halfedges as u64) * 64
+        + (s.mesh_vertices as u64) * 96
+        + (shape_offsets as u64) * 24
 }
 
 /// The cache: moka's future cache weighed in KiB (its weigher is u32).
@@ -98,7 +101,11 @@ impl BindingCache {
     /// The cached binding `key`, if any (counts a hit or a miss).
     pub async fn get(&self, key: &Key) -> Option<Arc<Entry>> {
         let e = self.cache.get(key).await;
-        if e.is_some() { self.metrics.cache_hits.increment(1) } else { self.metrics.cache_misses.increment(1) }
+        if e.is_some() {
+            self.metrics.cache_hits.increment(1)
+        } else {
+            self.metrics.cache_misses.increment(1)
+        }
         e
     }
 
@@ -120,7 +127,11 @@ impl BindingCache {
             .await
             .map_err(|e: Arc<ServiceError>| (*e).clone())?;
         let fresh = entry.is_fresh();
-        if fresh { self.metrics.cache_misses.increment(1) } else { self.metrics.cache_hits.increment(1) }
+        if fresh {
+            self.metrics.cache_misses.increment(1)
+        } else {
+            self.metrics.cache_hits.increment(1)
+        }
         let value = entry.into_value();
         if value.size_bytes > self.capacity_bytes {
             self.cache.invalidate(&key).await;

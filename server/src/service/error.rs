@@ -182,7 +182,9 @@ impl ServiceError {
     pub fn unknown_binding(id: &str) -> Self {
         Self::new(
             Code::UnknownBinding,
-            format!("binding {id} is not cached (never posted, or evicted): POST /v1/bindings with its content again, then retry"),
+            format!(
+                "binding {id} is not cached (never posted, or evicted): POST /v1/bindings with its content again, then retry"
+            ),
         )
     }
 
@@ -219,7 +221,9 @@ impl ServiceError {
             | E::UntouchedComponent { .. }
             | E::NotPositiveDefinite
             | E::DegenerateSurfaceFace { .. } => Code::BindingFailed,
-            E::SegmentCollapsed { .. } | E::DegenerateIntersection { .. } if phase == Phase::Frame => Code::DegeneratePose,
+            E::SegmentCollapsed { .. } | E::DegenerateIntersection { .. } if phase == Phase::Frame => {
+                Code::DegeneratePose
+            }
             E::ZeroLengthSpline { .. }
             | E::CoincidentTangents { .. }
             | E::TangentAlongNormal { .. }

@@ -59,23 +59,27 @@ impl Solved {
 /// Checks `frame` against the binding: topology hash, counts, finiteness.
 /// Messages name the array and index (`posed[1][17]`).
 pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
-    if let Some(h) = &frame.topology_hash {
-        if !h.eq_ignore_ascii_case(&entry.topology_hash) {
-            return Err(ServiceError::new(
-                Code::TopologyChanged,
-                format!(
-                    "the frame is for topology {h}, but binding {} has topology {}: the mesh changed, so post the new binding and use its id",
-                    entry.id, entry.topology_hash
-                ),
-            ));
-        }
+    if let Some(h) = &frame.topology_hash
+        && !h.eq_ignore_ascii_case(&entry.topology_hash)
+    {
+        return Err(ServiceError::new(
+            Code::TopologyChanged,
+            format!(
+                "the frame is for topology {h}, but binding {} has topology {}: the mesh changed, so post the new binding and use its id",
+                entry.id, entry.topology_hash
+            ),
+        ));
     }
     let b = &entry.binding;
     if !frame.posed.is_empty() {
         if frame.posed.len() != b.n_curvenets() {
             return Err(ServiceError::new(
                 Code::CountMismatch,
-                format!("posed has {} entries, but the binding has {} curvenets (one pool or null each)", frame.posed.len(), b.n_curvenets()),
+                format!(
+                    "posed has {} entries, but the binding has {} curvenets (one pool or null each)",
+                    frame.posed.len(),
+                    b.n_curvenets()
+                ),
             ));
         }
         for (k, pool) in frame.posed.iter().enumerate() {
@@ -83,7 +87,11 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
                 if pool.len() != b.n_control_points(k) {
                     return Err(ServiceError::new(
                         Code::CountMismatch,
-                        format!("posed[{k}] has {} control points, but curvenet {k}'s pool has {}", pool.len(), b.n_control_points(k)),
+                        format!(
+                            "posed[{k}] has {} control points, but curvenet {k}'s pool has {}",
+                            pool.len(),
+                            b.n_control_points(k)
+                        ),
                     ));
                 }
                 non_finite(pool, &format!("posed[{k}]"))?;
@@ -103,7 +111,11 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         if w.len() != entry.n_shapes {
             return Err(ServiceError::new(
                 Code::CountMismatch,
-                format!("blend_shape_weights has {} weights, but the binding has {} blend shapes", w.len(), entry.n_shapes),
+                format!(
+                    "blend_shape_weights has {} weights, but the binding has {} blend shapes",
+                    w.len(),
+                    entry.n_shapes
+                ),
             ));
         }
         if let Some(i) = w.iter().position(|x| !x.is_finite()) {

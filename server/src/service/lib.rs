@@ -32,8 +32,8 @@ pub use bake::{BakeFailure, BakeJob, Baker};
 pub use error::{Code, ServiceError};
 pub use openapi::openapi;
 pub use routes::app;
-pub use viewer::{FrameSource, ViewerStage};
 pub use state::{AppState, Config, DEFAULT_BODY_LIMIT, DEFAULT_CACHE_BYTES, DEFAULT_DRAIN_TIMEOUT, DEFAULT_MAX_SOLVES};
+pub use viewer::{FrameSource, ViewerStage};
 
 use std::future::Future;
 use std::sync::Arc;
@@ -43,7 +43,11 @@ use tokio::net::TcpListener;
 /// Serves `app(state)` on `listener` until `shutdown` resolves, then stops
 /// accepting connections and lets requests in flight finish for at most the
 /// configured drain timeout.
-pub async fn run(listener: TcpListener, state: AppState, shutdown: impl Future<Output = ()> + Send + 'static) -> std::io::Result<()> {
+pub async fn run(
+    listener: TcpListener,
+    state: AppState,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
     let drain = state.config().drain_timeout;
     let started = Arc::new(tokio::sync::Notify::new());
     let signal = {

@@ -9,7 +9,8 @@ use metrics_exporter_prometheus::{PrometheusBuilder, PrometheusHandle, Prometheu
 const METADATA: Metadata<'static> = Metadata::new(module_path!(), Level::INFO, Some(module_path!()));
 
 /// Latency buckets, seconds: 0.5 ms to 60 s.
-const BUCKETS: [f64; 16] = [0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0];
+const BUCKETS: [f64; 16] =
+    [0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 30.0, 60.0];
 
 pub struct Metrics {
     recorder: PrometheusRecorder,
@@ -57,15 +58,31 @@ impl Metrics {
         Self {
             cache_hits: counter("curvenet_cache_hits_total", "binding lookups answered from the cache"),
             cache_misses: counter("curvenet_cache_misses_total", "binding lookups that computed the binding"),
-            cache_evictions: counter("curvenet_cache_evictions_total", "bindings evicted to stay within the cache size"),
+            cache_evictions: counter(
+                "curvenet_cache_evictions_total",
+                "bindings evicted to stay within the cache size",
+            ),
             cache_bytes: gauge("curvenet_cache_bytes", Some(Unit::Bytes), "estimated bytes of the cached bindings"),
             cache_entries: gauge("curvenet_cache_entries", None, "cached bindings"),
             cache_capacity_bytes: gauge("curvenet_cache_capacity_bytes", Some(Unit::Bytes), "the cache size limit"),
-            bindings_computed: counter("curvenet_bindings_computed_total", "bindings computed (cut-mesh and factorisation)"),
-            saturated: counter("curvenet_saturated_total", "requests refused with 503 because every solve permit was taken"),
-            solves_in_flight: gauge("curvenet_solves_in_flight", None, "solve permits held (running or queued for a core)"),
+            bindings_computed: counter(
+                "curvenet_bindings_computed_total",
+                "bindings computed (cut-mesh and factorisation)",
+            ),
+            saturated: counter(
+                "curvenet_saturated_total",
+                "requests refused with 503 because every solve permit was taken",
+            ),
+            solves_in_flight: gauge(
+                "curvenet_solves_in_flight",
+                None,
+                "solve permits held (running or queued for a core)",
+            ),
             frames_solved: counter("curvenet_frames_solved_total", "frames deformed"),
-            solve_seconds: histogram("curvenet_frame_solve_seconds", "one frame's solve (core deform and blend shapes)"),
+            solve_seconds: histogram(
+                "curvenet_frame_solve_seconds",
+                "one frame's solve (core deform and blend shapes)",
+            ),
             bind_seconds: histogram("curvenet_bind_seconds", "one binding's computation"),
             recorder,
             handle,
@@ -74,9 +91,14 @@ impl Metrics {
 
     /// Counts one HTTP request.
     pub fn request(&self, route: &str, method: &str, status: u16, elapsed: Duration) {
-        let labels =
-            vec![Label::new("route", route.to_string()), Label::new("method", method.to_string()), Label::new("status", status.to_string())];
-        self.recorder.register_counter(&Key::from_parts("curvenet_http_requests_total", labels), &METADATA).increment(1);
+        let labels = vec![
+            Label::new("route", route.to_string()),
+            Label::new("method", method.to_string()),
+            Label::new("status", status.to_string()),
+        ];
+        self.recorder
+            .register_counter(&Key::from_parts("curvenet_http_requests_total", labels), &METADATA)
+            .increment(1);
         let labels = vec![Label::new("route", route.to_string())];
         self.recorder
             .register_histogram(&Key::from_parts("curvenet_http_request_duration_seconds", labels), &METADATA)

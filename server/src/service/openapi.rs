@@ -3,8 +3,9 @@
 
 use curvenet_schema::wire::{
     BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
-    BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest, DeformResponse,
-    ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse, InbetweenSpec, Warning,
+    BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest,
+    DeformResponse, ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
+    InbetweenSpec, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
@@ -25,7 +26,10 @@ struct BearerAuth;
 impl Modify for BearerAuth {
     fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
         let components = openapi.components.get_or_insert_with(Default::default);
-        components.add_security_scheme("bearer", SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()));
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
     }
 }
 

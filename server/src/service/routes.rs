@@ -14,8 +14,8 @@ use axum::middleware::{Next, from_fn_with_state};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use curvenet_schema::wire::{
-    BakeRequest, BakeResponse, BindingRequest, BindingResponse, DeformRequest, DeformResponse, ErrorBody, FrameBatchRequest,
-    FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
+    BakeRequest, BakeResponse, BindingRequest, BindingResponse, DeformRequest, DeformResponse, ErrorBody,
+    FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
 };
 use http_body_util::BodyExt;
 use rayon::prelude::*;
@@ -63,13 +63,21 @@ pub fn app(state: AppState) -> Router {
         .merge(open)
         .merge(api)
         .route_layer(from_fn_with_state(state.clone(), count_requests))
-        .fallback(|| async { ServiceError::new(Code::NotFound, "no such route; the API is described at /openapi.json") })
-        .method_not_allowed_fallback(|| async { ServiceError::new(Code::MethodNotAllowed, "this route does not take this method") })
+        .fallback(|| async {
+            ServiceError::new(Code::NotFound, "no such route; the API is described at /openapi.json")
+        })
+        .method_not_allowed_fallback(|| async {
+            ServiceError::new(Code::MethodNotAllowed, "this route does not take this method")
+        })
         .layer(
             ServiceBuilder::new()
                 .layer(SetRequestIdLayer::x_request_id(MakeId::default()))
                 .layer(PropagateRequestIdLayer::x_request_id())
-                .layer(TraceLayer::new_for_http().make_span_with(make_span).on_response(DefaultOnResponse::new().level(tracing::Level::INFO)))
+                .layer(
+                    TraceLayer::new_for_http()
+                        .make_span_with(make_span)
+                        .on_response(DefaultOnResponse::new().level(tracing::Level::INFO)),
+                )
                 .layer(CatchPanicLayer::custom(|panic: Box<dyn std::any::Any + Send + 'static>| {
                     ServiceError::internal(format!("a handler panicked: {}", panic_message(&panic))).into_response()
                 }))
@@ -146,13 +154,17 @@ async fn count_requests(State(state): State<AppState>, req: Request, next: Next)
 }
 
 fn too_large(limit: usize) -> ServiceError {
-    ServiceError::new(Code::PayloadTooLarge, format!("the body is larger than the server's limit of {limit} bytes (--body-limit)"))
+    ServiceError::new(
+        Code::PayloadTooLarge,
+        format!("the body is larger than the server's limit of {limit} bytes (--body-limit)"),
+    )
 }
 
 /// Refuses a declared Content-Length over the limit before reading anything.
 async fn content_length_limit(State(state): State<AppState>, req: Request, next: Next) -> Response {
     let limit = state.config().body_limit;
-    let declared = req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()).and_then(|v| v.parse::<u64>().ok());
+    let declared =
+        req.headers().get(header::CONTENT_LENGTH).and_then(|v| v.to_str().ok()).and_then(|v| v.parse::<u64>().ok());
     if declared.is_some_and(|n| n > limit as u64) {
         return too_large(limit).into_response();
     }
@@ -184,12 +196,16 @@ pub(crate) fn form(headers: &HeaderMap, binary_ok: bool) -> Result<Form, Service
         Ok(Form::Binary)
     } else {
         let accepted = if binary_ok { "application/json or application/octet-stream" } else { "application/json" };
-        Err(ServiceError::new(Code::UnsupportedMediaType, format!("Content-Type {ct} is not accepted here; send {accepted}")))
+        Err(ServiceError::new(
+            Code::UnsupportedMediaType,
+            format!("Content-Type {ct} is not accepted here; send {accepted}"),
+        ))
     }
 }
 
 pub(crate) fn parse_json<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> Result<T, ServiceError> {
-    serde_json::from_slice(bytes).map_err(|e| ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")))
+    serde_json::from_slice(bytes)
+        .map_err(|e| ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")))
 }
 
 fn json_bytes(bytes: Vec<u8>) -> Response {
@@ -272,7 +288,8 @@ pub(crate) async fn metrics(State(state): State<AppState>) -> Response {
     let inner = &state.inner;
     inner.cache.refresh_gauges().await;
     inner.metrics.solves_in_flight.set(state.solves_in_flight() as f64);
-    ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render()).into_response()
+    ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render())
+        .into_response()
 }
 
 #[utoipa::path(get, path = "/openapi.json", tag = "operations", security(("bearer" = [])),
@@ -292,7 +309,11 @@ pub(crate) async fn openapi_json() -> Json<utoipa::openapi::OpenApi> {
         (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
         (status = 507, description = "cache_too_small", body = ErrorBody),
     ))]
-pub(crate) async fn create_binding(State(state): State<AppState>, headers: HeaderMap, body: Body) -> Result<Response, ServiceError> {
+pub(crate) async fn create_binding(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ServiceError> {
     form(&headers, false)?;
     let bytes = read_body(&state, body).await?;
     let req: BindingRequest = blocking(move || parse_json(&bytes)).await?;
@@ -307,7 +328,10 @@ pub(crate) async fn create_binding(State(state): State<AppState>, headers: Heade
         (status = 200, description = "Cached", body = BindingResponse),
         (status = 404, description = "unknown_binding", body = ErrorBody),
     ))]
-pub(crate) async fn get_binding(State(state): State<AppState>, Path(id): Path<String>) -> Result<Json<BindingResponse>, ServiceError> {
+pub(crate) async fn get_binding(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Json<BindingResponse>, ServiceError> {
     let entry = lookup(&state, &id).await?;
     Ok(Json(binding_response(&entry, true)))
 }
@@ -319,9 +343,16 @@ pub(crate) async fn get_binding(State(state): State<AppState>, Path(id): Path<St
         (status = 204, description = "Dropped"),
         (status = 404, description = "unknown_binding", body = ErrorBody),
     ))]
-pub(crate) async fn delete_binding(State(state): State<AppState>, Path(id): Path<String>) -> Result<StatusCode, ServiceError> {
+pub(crate) async fn delete_binding(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<StatusCode, ServiceError> {
     let key = parse_key(&id).ok_or_else(|| ServiceError::unknown_binding(&id))?;
-    if state.inner.cache.remove(&key).await { Ok(StatusCode::NO_CONTENT) } else { Err(ServiceError::unknown_binding(&id)) }
+    if state.inner.cache.remove(&key).await {
+        Ok(StatusCode::NO_CONTENT)
+    } else {
+        Err(ServiceError::unknown_binding(&id))
+    }
 }
 
 /// Deforms one frame of a cached binding (JSON, or the binary form).
@@ -379,7 +410,13 @@ pub(crate) async fn post_frames_batch(
     solve_frames(state, id, headers, body, true).await
 }
 
-async fn solve_frames(state: AppState, id: String, headers: HeaderMap, body: Body, batch: bool) -> Result<Response, ServiceError> {
+async fn solve_frames(
+    state: AppState,
+    id: String,
+    headers: HeaderMap,
+    body: Body,
+    batch: bool,
+) -> Result<Response, ServiceError> {
     let form = form(&headers, true)?;
     let entry = lookup(&state, &id).await?;
     let bytes = read_body(&state, body).await?;
@@ -409,13 +446,12 @@ async fn solve_frames(state: AppState, id: String, headers: HeaderMap, body: Bod
             let n = solved.len();
             let out = match (form, batch) {
                 (Form::Binary, _) => binary::encode(&solved, batch),
-                (Form::Json, false) => {
-                    serde_json::to_vec(&solved.into_iter().next().map(Solved::into_response)).map_err(ServiceError::internal_from)?
-                }
-                (Form::Json, true) => {
-                    serde_json::to_vec(&FrameBatchResponse { frames: solved.into_iter().map(Solved::into_response).collect() })
-                        .map_err(ServiceError::internal_from)?
-                }
+                (Form::Json, false) => serde_json::to_vec(&solved.into_iter().next().map(Solved::into_response))
+                    .map_err(ServiceError::internal_from)?,
+                (Form::Json, true) => serde_json::to_vec(&FrameBatchResponse {
+                    frames: solved.into_iter().map(Solved::into_response).collect(),
+                })
+                .map_err(ServiceError::internal_from)?,
             };
             Ok((out, n, solve_ms))
         })
@@ -468,7 +504,11 @@ fn parse_frames(entry: &Entry, form: Form, bytes: &[u8], batch: bool) -> Result<
         (status = 422, description = "The binding or the frame is invalid", body = ErrorBody),
         (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
     ))]
-pub(crate) async fn deform(State(state): State<AppState>, headers: HeaderMap, body: Body) -> Result<Response, ServiceError> {
+pub(crate) async fn deform(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ServiceError> {
     form(&headers, false)?;
     let bytes = read_body(&state, body).await?;
     let req: DeformRequest = blocking(move || parse_json(&bytes)).await?;
@@ -503,16 +543,25 @@ pub(crate) async fn deform(State(state): State<AppState>, headers: HeaderMap, bo
         (status = 422, description = "bake_failed", body = ErrorBody),
         (status = 503, description = "saturated or unavailable (Retry-After)", body = ErrorBody),
     ))]
-pub(crate) async fn bake(State(state): State<AppState>, headers: HeaderMap, body: Body) -> Result<Response, ServiceError> {
+pub(crate) async fn bake(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Response, ServiceError> {
     form(&headers, false)?;
     let bytes = read_body(&state, body).await?;
     let req: BakeRequest = parse_json(&bytes)?;
     let roots = state.inner.bake_roots.clone();
     let job = blocking(move || {
-        Ok(BakeJob { stage: check_stage(&req.stage, &roots)?, output: check_output(&req.output, &roots)?, frames: req.frames })
+        Ok(BakeJob {
+            stage: check_stage(&req.stage, &roots)?,
+            output: check_output(&req.output, &roots)?,
+            frames: req.frames,
+        })
     })
     .await?;
-    let baker = state.inner.baker.clone().ok_or_else(|| ServiceError::internal("this server was started without a baker"))?;
+    let baker =
+        state.inner.baker.clone().ok_or_else(|| ServiceError::internal("this server was started without a baker"))?;
     let permit = state.permits(1)?;
     let t = Instant::now();
     let job2 = job.clone();

@@ -84,7 +84,8 @@ impl AppState {
             .bake_roots
             .iter()
             .map(|r| {
-                std::fs::canonicalize(r).map_err(|e| std::io::Error::new(e.kind(), format!("bake root {}: {e}", r.display())))
+                std::fs::canonicalize(r)
+                    .map_err(|e| std::io::Error::new(e.kind(), format!("bake root {}: {e}", r.display())))
             })
             .collect::<std::io::Result<Vec<_>>>()?;
         let metrics = Arc::new(Metrics::new());
@@ -169,10 +170,14 @@ impl AppState {
 }
 
 /// Runs `f` on tokio's blocking pool; a panic becomes an `internal` error.
-pub(crate) async fn blocking<T: Send + 'static>(f: impl FnOnce() -> Result<T, ServiceError> + Send + 'static) -> Result<T, ServiceError> {
+pub(crate) async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> Result<T, ServiceError> + Send + 'static,
+) -> Result<T, ServiceError> {
     match tokio::task::spawn_blocking(f).await {
         Ok(r) => r,
-        Err(e) if e.is_panic() => Err(ServiceError::internal(format!("a blocking task panicked: {}", panic_message(&e.into_panic())))),
+        Err(e) if e.is_panic() => {
+            Err(ServiceError::internal(format!("a blocking task panicked: {}", panic_message(&e.into_panic()))))
+        }
         Err(e) => Err(ServiceError::internal(format!("a blocking task failed: {e}"))),
     }
 }

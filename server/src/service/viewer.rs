@@ -75,7 +75,14 @@ pub struct ViewerStage {
 }
 
 impl ViewerStage {
-    pub fn new(stage: String, mesh: String, curvenets: Vec<String>, times: Vec<f64>, binding: BindingRequest, frame: FrameSource) -> Self {
+    pub fn new(
+        stage: String,
+        mesh: String,
+        curvenets: Vec<String>,
+        times: Vec<f64>,
+        binding: BindingRequest,
+        frame: FrameSource,
+    ) -> Self {
         Self { stage, mesh, curvenets, times, binding, frame, bound: Mutex::new(None) }
     }
 }
@@ -93,7 +100,10 @@ impl AppState {
         stages.get(index).cloned().ok_or_else(|| {
             ServiceError::new(
                 Code::NotFound,
-                format!("no stage {index} is open in the viewer ({} open; start the server with --open-stage STAGE)", stages.len()),
+                format!(
+                    "no stage {index} is open in the viewer ({} open; start the server with --open-stage STAGE)",
+                    stages.len()
+                ),
             )
         })
     }
@@ -265,7 +275,13 @@ pub(crate) async fn style() -> Response {
 // ---------------------------------------------------------------- handlers
 
 fn info(index: usize, s: &ViewerStage) -> ViewerStageInfo {
-    ViewerStageInfo { index, stage: s.stage.clone(), mesh: s.mesh.clone(), curvenets: s.curvenets.clone(), times: s.times.clone() }
+    ViewerStageInfo {
+        index,
+        stage: s.stage.clone(),
+        mesh: s.mesh.clone(),
+        curvenets: s.curvenets.clone(),
+        times: s.times.clone(),
+    }
 }
 
 /// The stages opened in the viewer.
@@ -279,14 +295,14 @@ pub(crate) async fn stages(State(state): State<AppState>) -> Json<ViewerStages> 
 /// The entry of a stage's binding: cached, else bound now (through the cache).
 async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry>, bool), ServiceError> {
     let known = stage.bound.lock().unwrap_or_else(|e| e.into_inner()).clone();
-    if let Some(id) = known {
-        if let Some(entry) = parse_key(&id) {
-            if let Some(e) = state.inner.cache.get(&entry).await {
-                return Ok((e, true));
-            }
-        }
+    if let Some(id) = known
+        && let Some(entry) = parse_key(&id)
+        && let Some(e) = state.inner.cache.get(&entry).await
+    {
+        return Ok((e, true));
     }
-    let (entry, cached) = crate::routes::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
+    let (entry, cached) =
+        crate::routes::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
     *stage.bound.lock().unwrap_or_else(|e| e.into_inner()) = Some(entry.id.clone());
     Ok((entry, cached))
 }
@@ -299,10 +315,16 @@ async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry
         (status = 404, description = "not_found: no such stage", body = ErrorBody),
         (status = 422, description = "The stage's mesh cannot be bound", body = ErrorBody),
     ))]
-pub(crate) async fn stage(State(state): State<AppState>, Path(index): Path<usize>) -> Result<Json<ViewerStageBinding>, ServiceError> {
+pub(crate) async fn stage(
+    State(state): State<AppState>,
+    Path(index): Path<usize>,
+) -> Result<Json<ViewerStageBinding>, ServiceError> {
     let stage = state.viewer_stage(index)?;
     let (entry, cached) = stage_entry(&state, &stage).await?;
-    Ok(Json(ViewerStageBinding { info: info(index, &stage), binding: BindingResponse { cached, ..entry.response.clone() } }))
+    Ok(Json(ViewerStageBinding {
+        info: info(index, &stage),
+        binding: BindingResponse { cached, ..entry.response.clone() },
+    }))
 }
 
 /// Solves frame `k` of a stage opened in the viewer.
@@ -331,7 +353,8 @@ pub(crate) async fn stage_frame(
     let (entry, _) = stage_entry(&state, &stage).await?;
     let read = stage.clone();
     let request = blocking(move || {
-        (read.frame)(k).map_err(|m| ServiceError::new(Code::InvalidParameter, format!("{}, frame {time}: {m}", read.stage)))
+        (read.frame)(k)
+            .map_err(|m| ServiceError::new(Code::InvalidParameter, format!("{}, frame {time}: {m}", read.stage)))
     })
     .await?;
     let context = format!("{} frame {time}", stage.mesh);
@@ -347,7 +370,10 @@ pub(crate) async fn stage_frame(
         (status = 200, description = "The mesh, cut-mesh and curvenets of the binding", body = ViewerData),
         (status = 404, description = "unknown_binding", body = ErrorBody),
     ))]
-pub(crate) async fn viewer_data(State(state): State<AppState>, Path(id): Path<String>) -> Result<Response, ServiceError> {
+pub(crate) async fn viewer_data(
+    State(state): State<AppState>,
+    Path(id): Path<String>,
+) -> Result<Response, ServiceError> {
     let entry = crate::routes::lookup(&state, &id).await?;
     let bytes = blocking(move || serde_json::to_vec(&data(&entry)).map_err(ServiceError::internal_from)).await?;
     Ok(([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], bytes).into_response())
@@ -428,7 +454,9 @@ fn flat(points: &[[f64; 3]]) -> Vec<f32> {
 /// The cut-vertices at their locations on the surface posed at `points`.
 fn cut_points(b: &Binding, points: &[[f64; 3]]) -> Vec<f32> {
     let cut = b.cut_mesh();
-    (0..cut.n_vertices() as u32).flat_map(|v| b.surface().position_in(cut.vertex(v).loc, points).to_array().map(|x| x as f32)).collect()
+    (0..cut.n_vertices() as u32)
+        .flat_map(|v| b.surface().position_in(cut.vertex(v).loc, points).to_array().map(|x| x as f32))
+        .collect()
 }
 
 fn flat_frames(frames: &[[ScaledFrame; 2]]) -> Vec<f32> {
