@@ -8,7 +8,7 @@
 //! and scatter one column at a time, while a frame solves 9 and then 3
 //! columns at once; keeping the K values of a row together makes each
 //! factor entry one K-wide fused update (measured about 1.5× faster than
-//! faer's simplicial solve on this machine, see ../shared/notes). The factor
+//! faer's simplicial solve on this machine, by the team's notes). The factor
 //! is copied once into plain CSC arrays (`u32` indices) for that purpose.
 //!
 //! The symbolic analysis is kept (`Arc`) so a matrix with the same pattern

@@ -13,7 +13,7 @@ use curvenet_core::{Curvenet, CurvenetLayout, Error, PolyMesh, SamplingOptions};
 use glam::DVec3;
 
 fn hand() -> (PolyMesh, Vec<[f64; 3]>) {
-    load_obj(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/meshes/hand_1k4.obj"))
+    load_obj(&format!("{MESH_DIR}/hand_1k4.obj"))
 }
 
 /// The vertex Laplacian assembled from per-face polygon Laplacians.

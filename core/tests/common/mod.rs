@@ -7,12 +7,18 @@ use std::collections::HashMap;
 use curvenet_core::closest_point::ClosestPointBvh;
 use curvenet_core::{Mat3, PolyMesh};
 
-pub const MESH_DIR: &str = "/work/shared/data/meshes";
+/// The vendored source meshes (gzip-compressed OBJ, see fixtures/meshes/README.md).
+pub const MESH_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../fixtures/meshes");
 
-/// A polygon mesh read from an OBJ file: `v` and `f` lines only (1-based or
+/// A polygon mesh read from a gzip-compressed OBJ file (`MESH_DIR/<name>.gz`
+/// for a name like `hand_1k4.obj`): `v` and `f` lines only (1-based or
 /// negative indices, `v/vt/vn` corners).
 pub fn load_obj(path: &str) -> (PolyMesh, Vec<[f64; 3]>) {
-    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("reading {path}: {e}"));
+    use std::io::Read;
+    let gz = format!("{path}.gz");
+    let file = std::fs::File::open(&gz).unwrap_or_else(|e| panic!("reading {gz}: {e}"));
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(file).read_to_string(&mut text).unwrap_or_else(|e| panic!("decompressing {gz}: {e}"));
     let mut points = Vec::new();
     let mut counts = Vec::new();
     let mut indices = Vec::new();
