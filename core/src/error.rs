@@ -36,36 +36,41 @@ pub enum Error {
         "non-manifold vertex {vertex}: its faces form several fans (one fan covers {fans_cover} of its {faces} faces)"
     )]
     NonManifoldVertex { vertex: u32, fans_cover: u32, faces: u32 },
+    /// Two consecutive corners of a face coincide (a zero-length edge).
+    #[error(
+        "face {face} has coincident corners: vertices {a} and {b} are at the same position (merge them or remove the edge)"
+    )]
+    CoincidentFaceVertices { face: usize, a: u32, b: u32 },
     /// A face of (numerically) zero area.
-    #[error("face {face} has zero area ({area:e})")]
-    ZeroAreaFace { face: usize, area: f64 },
+    #[error("face {face} (vertices {vertices:?}) has zero area ({area:e}): its corners are collinear")]
+    ZeroAreaFace { face: usize, vertices: Vec<u32>, area: f64 },
     /// A face whose corners, projected onto its own plane, fold over each other.
     #[error(
         "face {face} folds over itself (its projection onto its own plane is not a simple counter-clockwise polygon)"
     )]
     FoldedFace { face: usize },
     /// A curvenet sample too far from the surface to bind.
-    #[error(
-        "curvenet sample {sample} (spline {spline}) is {distance:e} from the surface, farther than the limit {limit:e}"
-    )]
-    SampleFarFromSurface { sample: u32, spline: u32, distance: f64, limit: f64 },
-    /// A segment's path reached the boundary of an open mesh.
-    #[error("curvenet segment {segment} (spline {spline}) runs off the boundary of the mesh")]
-    SegmentLeavesSurface { segment: u32, spline: u32 },
-    /// A segment's path could not be traced over the surface.
-    #[error("curvenet segment {segment} (spline {spline}) could not be traced over the surface between its samples")]
-    SegmentNotTraced { segment: u32, spline: u32 },
+    #[error("{at} at {position:?} is {distance:e} from the surface, farther than the limit {limit:e}")]
+    SampleFarFromSurface { at: SampleRef, position: [f64; 3], distance: f64, limit: f64 },
+    /// A segment's path could not be traced over the surface (a bug: a
+    /// path between two points of one component always exists).
+    #[error("{segment} could not be traced over the surface between its samples")]
+    SegmentNotTraced { segment: SegmentRef },
+    /// In strict mode: a segment whose surface path is much longer than the
+    /// segment (its samples project across a concavity or onto the far side
+    /// of a thin part), or whose samples project onto different components
+    /// (`path_length` infinite).
+    #[error("{segment} at {position:?} (spline parameter {t:.3}) {}", detour_text(*path_length, *segment_length))]
+    SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
     /// Two curvenet segments meet at a point that is not a shared knot.
-    #[error(
-        "curvenet segments {segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)"
-    )]
-    CurvesOverlap { segment: u32, other: u32 },
+    #[error("{segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)")]
+    CurvesOverlap { segment: SegmentRef, other: SegmentRef },
     /// Two curvenet segments cross inside a face without a shared knot.
-    #[error("curvenet segments {segment} and {other} cross inside face {face} without a shared knot")]
-    CurvesCross { segment: u32, other: u32, face: u32 },
+    #[error("{segment} and {other} cross inside face {face} without a shared knot")]
+    CurvesCross { segment: SegmentRef, other: SegmentRef, face: u32 },
     /// A segment's chord crosses the boundary of the face it was traced in.
-    #[error("curvenet segment {segment} crosses the boundary of face {face} (the face is too curved for its chord)")]
-    SegmentCrossesFaceBoundary { segment: u32, face: u32 },
+    #[error("{segment} crosses the boundary of face {face} (the face is too curved for its chord)")]
+    SegmentCrossesFaceBoundary { segment: SegmentRef, face: u32 },
     /// A connected component no curvenet touches, refused in strict mode.
     #[error("mesh component {component} ({vertices} vertices) is touched by no curvenet")]
     UntouchedComponent { component: usize, vertices: usize },
@@ -117,3 +122,45 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// A curvenet segment as users number it: the curvenet (in binding
+/// order), the spline within that curvenet, and the segment within the
+/// spline counted from the spline's control point 0. Every error and
+/// warning about a segment uses this numbering.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct SegmentRef {
+    pub curvenet: u32,
+    pub spline: u32,
+    pub segment: u32,
+}
+
+impl std::fmt::Display for SegmentRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "curvenet {} spline {} segment {}", self.curvenet, self.spline, self.segment)
+    }
+}
+
+/// A curvenet sample as users number it: the curvenet (in binding order),
+/// a spline it belongs to, and the sample's index among the curvenet's samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct SampleRef {
+    pub curvenet: u32,
+    pub spline: u32,
+    pub sample: u32,
+}
+
+impl std::fmt::Display for SampleRef {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "curvenet {} sample {} (spline {})", self.curvenet, self.sample, self.spline)
+    }
+}
+
+fn detour_text(path_length: f64, segment_length: f64) -> String {
+    if path_length.is_finite() {
+        format!(
+            "takes a surface path {path_length:.4e} long for a segment {segment_length:.4e} long: the curve bridges a concavity or a thin part there (draw it closer to the surface)"
+        )
+    } else {
+        "projects onto two different mesh components (draw the curve on one of them)".to_string()
+    }
+}

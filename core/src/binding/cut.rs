@@ -23,8 +23,8 @@ use glam::{DVec2, DVec3};
 
 use super::locate::Location;
 use super::surface::{Surface, segments_cross};
-use super::trace::{Path, TraceFailure};
-use crate::error::{Error, Result};
+use super::trace::{Path, PathMethod, TraceFailure};
+use crate::error::{Error, Result, SampleRef, SegmentRef};
 use crate::halfedge::INVALID;
 
 /// Cut-vertex bitmask: the cut-vertex is an input mesh vertex.
@@ -46,13 +46,57 @@ pub enum CurvePoint {
 }
 
 /// The curvenet as the cutter needs it: projection-pose sample positions
-/// and segments as sample pairs (from sample `[0]` to sample `[1]`).
+/// and segments as sample pairs (from sample `[0]` to sample `[1]`), in one
+/// numbering over all bound curvenets.
 #[derive(Debug, Clone, Copy)]
 pub struct CutInput<'a> {
     pub samples: &'a [[f64; 3]],
     pub segments: &'a [[u32; 2]],
-    /// The spline of each sample, to name it in errors.
-    pub sample_spline: &'a [u32],
+    /// Each sample as users number it (curvenet, spline, sample), to name it in errors.
+    pub sample_ref: &'a [SampleRef],
+    /// Each segment as users number it (curvenet, spline, segment within the spline).
+    pub segment_ref: &'a [SegmentRef],
+}
+
+impl CutInput<'_> {
+    fn segment(&self, s: u32) -> SegmentRef {
+        self.segment_ref.get(s as usize).copied().unwrap_or(SegmentRef { curvenet: 0, spline: u32::MAX, segment: s })
+    }
+}
+
+/// A segment whose surface path is much longer than the segment itself
+/// (its samples project across a concavity or onto the far side of a thin
+/// part), or whose samples project onto different connected components (no
+/// path exists; the segment is left out of the cut).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detour {
+    /// The segment (global numbering of [`CutInput::segments`]).
+    pub segment: u32,
+    /// Length of the surface path, or infinity when there is none.
+    pub path_length: f64,
+    /// Distance between the segment's two samples.
+    pub segment_length: f64,
+}
+
+/// A surface path is a detour when it is longer than this many times its
+/// segment's length, plus [`DETOUR_EDGES`] mean edge lengths.
+pub const DETOUR_RATIO: f64 = 3.0;
+/// See [`DETOUR_RATIO`].
+pub const DETOUR_EDGES: f64 = 2.0;
+
+/// How the segments' surface paths were found (see [`PathMethod`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct EmbeddingCounts {
+    /// Samples projecting to one cut-vertex: nothing to insert.
+    pub collapsed: usize,
+    /// Chords inside one face.
+    pub chord: usize,
+    /// Straightest paths.
+    pub straightest: usize,
+    /// Shortest paths in a face strip, after the straightest path missed.
+    pub fallback: usize,
+    /// Segments left out: their samples project onto different components.
+    pub disconnected: usize,
 }
 
 /// Options of the cutter.
@@ -120,6 +164,8 @@ pub struct CutMesh {
     pub(crate) n_cracks: usize,
     pub(crate) n_islands_removed: usize,
     pub(crate) n_islands_samples: usize,
+    pub(crate) embedding: EmbeddingCounts,
+    pub(crate) detours: Vec<Detour>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -136,23 +182,54 @@ impl CutMesh {
         CUT_MESH_BUILDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         let tol = options.snap_tolerance * surface.diagonal;
         let mut reg = Registry::new(surface);
-        // 1. Samples.
-        let mut sample_vertex = Vec::with_capacity(input.samples.len());
+        // 1. Where the samples project.
+        let limit = options.max_projection_distance * surface.diagonal;
+        let mut sample_loc = Vec::with_capacity(input.samples.len());
         for (i, q) in input.samples.iter().enumerate() {
             let hit = surface.bvh.closest_point(*q)?;
-            let limit = options.max_projection_distance * surface.diagonal;
             if hit.distance > limit {
-                return Err(Error::SampleFarFromSurface {
+                let at = input.sample_ref.get(i).copied().unwrap_or(SampleRef {
+                    curvenet: 0,
+                    spline: u32::MAX,
                     sample: i as u32,
-                    spline: input.sample_spline.get(i).copied().unwrap_or(u32::MAX),
-                    distance: hit.distance,
-                    limit,
                 });
+                return Err(Error::SampleFarFromSurface { at, position: *q, distance: hit.distance, limit });
             }
-            let f = hit.face;
             let tri = surface.triangles[hit.triangle as usize];
             let p2: DVec2 = (0..3).map(|k| surface.corners_2d[tri[k] as usize] * hit.barycentric[k]).sum();
-            let loc = surface.locate_in_face(f, p2, tol);
+            sample_loc.push(surface.locate_in_face(hit.face, p2, tol));
+        }
+        // Segments whose samples land on different components cannot be
+        // embedded; a sample none of whose segments can is left out too.
+        let component = |loc: Location| {
+            let mut faces = Vec::new();
+            surface.faces_of(loc, &mut faces);
+            surface.halfedges.face_component(faces[0])
+        };
+        let sample_component: Vec<u32> = sample_loc.iter().map(|&l| component(l)).collect();
+        let mut detours = Vec::new();
+        let mut embedding = EmbeddingCounts::default();
+        let mut sample_used = vec![false; input.samples.len()];
+        let mut segment_embedded = vec![true; input.segments.len()];
+        for (s, &[i, j]) in input.segments.iter().enumerate() {
+            if sample_component[i as usize] == sample_component[j as usize] {
+                sample_used[i as usize] = true;
+                sample_used[j as usize] = true;
+            } else {
+                segment_embedded[s] = false;
+                embedding.disconnected += 1;
+                let length = (DVec3::from_array(input.samples[i as usize])
+                    - DVec3::from_array(input.samples[j as usize]))
+                .length();
+                detours.push(Detour { segment: s as u32, path_length: f64::INFINITY, segment_length: length });
+            }
+        }
+        let mut sample_vertex = Vec::with_capacity(input.samples.len());
+        for (i, &loc) in sample_loc.iter().enumerate() {
+            if !sample_used[i] {
+                sample_vertex.push(INVALID);
+                continue;
+            }
             let cv = reg.insert(loc, tol);
             let v = &mut reg.vertices[cv as usize];
             if v.mask & (SAMPLE | CROSSING) == 0 {
@@ -164,22 +241,36 @@ impl CutMesh {
         // 2. Segments.
         let mut pieces = Vec::new();
         let mut path = Path::default();
+        let mut pos: Vec<DVec3> = Vec::new();
         for (s, &[i, j]) in input.segments.iter().enumerate() {
+            if !segment_embedded[s] {
+                continue;
+            }
             let (ca, cb) = (sample_vertex[i as usize], sample_vertex[j as usize]);
             if ca == cb {
+                embedding.collapsed += 1;
                 continue; // both samples project to one point: nothing to insert
             }
             let (la, lb) = (reg.vertices[ca as usize].loc, reg.vertices[cb as usize].loc);
-            surface.trace(la, lb, tol, &mut path).map_err(|why| {
-                let spline = input.sample_spline.get(i as usize).copied().unwrap_or(u32::MAX);
-                match why {
-                    TraceFailure::LeftTheSurface => Error::SegmentLeavesSurface { segment: s as u32, spline },
-                    TraceFailure::Lost => Error::SegmentNotTraced { segment: s as u32, spline },
+            let method = surface.trace(la, lb, tol, &mut path).map_err(|why| match why {
+                TraceFailure::Disconnected | TraceFailure::LeftTheSurface | TraceFailure::Lost => {
+                    Error::SegmentNotTraced { segment: input.segment(s as u32) }
                 }
             })?;
+            match method {
+                PathMethod::Chord => embedding.chord += 1,
+                PathMethod::Straightest => embedding.straightest += 1,
+                PathMethod::Fallback => embedding.fallback += 1,
+            }
             // Arc-length fractions of the path points.
-            let pos: Vec<DVec3> = path.points.iter().map(|&l| surface.position(l)).collect();
+            pos.clear();
+            pos.extend(path.points.iter().map(|&l| surface.position(l)));
             let total: f64 = pos.windows(2).map(|w| (w[1] - w[0]).length()).sum();
+            let length =
+                (DVec3::from_array(input.samples[i as usize]) - DVec3::from_array(input.samples[j as usize])).length();
+            if total > DETOUR_RATIO * length + DETOUR_EDGES * surface.mean_edge_length {
+                detours.push(Detour { segment: s as u32, path_length: total, segment_length: length });
+            }
             let mut prev = ca;
             let mut acc = 0.0;
             for k in 1..path.points.len() {
@@ -190,7 +281,11 @@ impl CutMesh {
                     let cv = reg.insert(path.points[k], tol);
                     let v = &mut reg.vertices[cv as usize];
                     if v.mask & (SAMPLE | CROSSING) != 0 {
-                        return Err(Error::CurvesOverlap { segment: s as u32, other: reg.segment_at(cv, input) });
+                        let other = reg.segment_at(cv, input);
+                        return Err(Error::CurvesOverlap {
+                            segment: input.segment(s as u32),
+                            other: input.segment(other),
+                        });
                     }
                     v.mask |= CROSSING;
                     v.curve = CurvePoint::Crossing { segment: s as u32, t: acc / total };
@@ -202,7 +297,10 @@ impl CutMesh {
                 prev = cv;
             }
         }
-        reg.build(surface, input, pieces, sample_vertex)
+        let mut cut = reg.build(surface, input, pieces, sample_vertex)?;
+        cut.embedding = embedding;
+        cut.detours = detours;
+        Ok(cut)
     }
 
     pub fn n_vertices(&self) -> usize {
@@ -262,6 +360,14 @@ impl CutMesh {
     /// Number of islands (chord clusters inside one face) removed, and the samples they held.
     pub fn islands_removed(&self) -> (usize, usize) {
         (self.n_islands_removed, self.n_islands_samples)
+    }
+    /// How the segments' surface paths were found.
+    pub fn embedding(&self) -> EmbeddingCounts {
+        self.embedding
+    }
+    /// Segments with a surface path much longer than themselves, or none.
+    pub fn detours(&self) -> &[Detour] {
+        &self.detours
     }
 }
 
@@ -436,7 +542,12 @@ impl<'s> Registry<'s> {
                     pslg.edge(la, lb, p.segment, true);
                 }
             }
-            pslg.check_crossings(f)?;
+            pslg.check_crossings().map_err(|(segment, other)| match other {
+                None => Error::SegmentCrossesFaceBoundary { segment: input.segment(segment), face: f },
+                Some(other) => {
+                    Error::CurvesCross { segment: input.segment(segment), other: input.segment(other), face: f }
+                }
+            })?;
             let islands = pslg.remove_islands(nb);
             for &v in &islands.removed_nodes {
                 removed_vertices[pslg.cut_vertex[v as usize] as usize] = true;
@@ -481,11 +592,10 @@ impl<'s> Registry<'s> {
                 out.twin[g as usize] = t;
             }
         }
-        for (i, v) in sample_vertex.iter_mut().enumerate() {
-            if removed_vertices[*v as usize] {
+        for v in &mut sample_vertex {
+            if *v != INVALID && removed_vertices[*v as usize] {
                 *v = INVALID;
                 n_island_samples += 1;
-                let _ = i;
             }
         }
         Ok(CutMesh {
@@ -501,6 +611,8 @@ impl<'s> Registry<'s> {
             n_cracks: out.n_cracks,
             n_islands_removed: n_islands,
             n_islands_samples: n_island_samples,
+            embedding: EmbeddingCounts::default(),
+            detours: Vec::new(),
         })
     }
 }
@@ -597,8 +709,9 @@ impl Pslg {
         (self.from[e as usize], self.from[(e ^ 1) as usize])
     }
 
-    /// Chords that cross each other or a boundary piece inside the face.
-    fn check_crossings(&self, f: u32) -> Result<()> {
+    /// Chords that cross each other or a boundary piece inside the face:
+    /// the chord's segment and the other chord's (`None` for the boundary).
+    fn check_crossings(&self) -> std::result::Result<(), (u32, Option<u32>)> {
         let n_edges = self.from.len() / 2;
         for i in 0..n_edges {
             if self.boundary[2 * i] {
@@ -619,11 +732,7 @@ impl Pslg {
                     self.pos[c as usize],
                     self.pos[d as usize],
                 ) {
-                    return Err(if self.boundary[2 * j] {
-                        Error::SegmentCrossesFaceBoundary { segment: self.seg[2 * i], face: f }
-                    } else {
-                        Error::CurvesCross { segment: self.seg[2 * i], other: self.seg[2 * j], face: f }
-                    });
+                    return Err((self.seg[2 * i], (!self.boundary[2 * j]).then_some(self.seg[2 * j])));
                 }
             }
         }

@@ -30,6 +30,7 @@
 
 pub mod cut;
 pub mod locate;
+pub mod strip;
 pub mod surface;
 pub mod trace;
 mod view;
@@ -41,12 +42,14 @@ use glam::DVec3;
 
 use crate::cholesky::{Cholesky, SymmetricTriplets};
 use crate::curvenet::{CurvenetLayout, Side};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SampleRef, SegmentRef};
 use crate::halfedge::INVALID;
 use crate::mesh::PolyMesh;
 use crate::polygon_laplacian::{DEFAULT_LAMBDA, PolygonScratch, polygon_laplacian};
 use crate::sparse::Csr;
-pub use cut::{CROSSING, CutInput, CutMesh, CutOptions, MESH_VERTEX, SAMPLE};
+pub use cut::{
+    CROSSING, CutInput, CutMesh, CutOptions, DETOUR_EDGES, DETOUR_RATIO, Detour, EmbeddingCounts, MESH_VERTEX, SAMPLE,
+};
 pub use surface::Surface;
 
 /// Options of [`Binding::new`].
@@ -56,8 +59,9 @@ pub struct BindOptions {
     pub cut: CutOptions,
     /// Weight of the `QᵀQ` term of the polygon Laplacian (paper: 1).
     pub lambda: f64,
-    /// Refuse a mesh with a connected component no curvenet touches instead
-    /// of passing its vertices through with a warning.
+    /// Refuse what is otherwise bound with a warning: a mesh component no
+    /// curvenet touches (its vertices pass through), and segments whose
+    /// surface path is a detour ([`BindWarning::SegmentDetour`]).
     pub strict: bool,
 }
 
@@ -85,6 +89,15 @@ pub enum BindWarning {
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
     DegenerateCutFaces { count: usize },
+    /// A segment whose surface path is much longer than the segment
+    /// (longer than [`DETOUR_RATIO`] × its length + [`DETOUR_EDGES`] mean
+    /// edges: its samples project across a concavity or onto the far side
+    /// of a thin part), bound along that path; or, with an infinite
+    /// `path_length`, one whose samples project onto different mesh
+    /// components, left out. `t` is the segment's midpoint as a fraction of
+    /// its spline's arc length, `position` that midpoint in the projection
+    /// pose.
+    SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
 }
 
 impl std::fmt::Display for BindWarning {
@@ -99,6 +112,20 @@ impl std::fmt::Display for BindWarning {
             }
             BindWarning::DegenerateCutFaces { count } => {
                 write!(f, "{count} zero-area cut-faces were left out of the Laplacian")
+            }
+            BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => {
+                let [x, y, z] = position;
+                if path_length.is_finite() {
+                    write!(
+                        f,
+                        "{segment} at ({x:.4}, {y:.4}, {z:.4}) (spline parameter {t:.3}): its samples project {path_length:.4} apart over the surface for a segment {segment_length:.4} long (the curve bridges a concavity or a thin part there); bound along that path"
+                    )
+                } else {
+                    write!(
+                        f,
+                        "{segment} at ({x:.4}, {y:.4}, {z:.4}) (spline parameter {t:.3}): its samples project onto two different mesh components; the segment is left out"
+                    )
+                }
             }
         }
     }
@@ -176,6 +203,10 @@ pub struct BindStats {
     pub cut_halfedges: usize,
     pub cracks: usize,
     pub islands_removed: usize,
+    /// How the segments' surface paths were found.
+    pub embedding: EmbeddingCounts,
+    /// Segments bound along a detour or left out ([`BindWarning::SegmentDetour`]).
+    pub detours: usize,
     pub unknowns: usize,
     pub constraints: usize,
     pub factor_nonzeros: usize,
@@ -260,22 +291,29 @@ impl Binding {
         // Concatenate the curvenets.
         let mut samples = Vec::new();
         let mut segments = Vec::new();
-        let mut sample_spline = Vec::new();
+        let mut sample_ref = Vec::new();
+        let mut segment_ref = Vec::new();
         let mut nets = Vec::new();
         let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::default();
         let mut n_slots = 0u32;
-        for layout in curvenets {
+        for (k, layout) in curvenets.iter().enumerate() {
+            let curvenet = k as u32;
             let range = NetRange { sample: samples.len() as u32, segment: segments.len() as u32, slot: n_slots };
             nets.push(range);
             samples.extend_from_slice(layout.neutral_samples());
-            let mut spline_of = vec![u32::MAX; layout.n_samples()];
+            let first = sample_ref.len();
+            sample_ref.extend((0..layout.n_samples() as u32).map(|sample| SampleRef {
+                curvenet,
+                spline: u32::MAX,
+                sample,
+            }));
             for seg in layout.sampling().segments() {
                 segments.push(seg.samples.map(|i| i + range.sample));
+                segment_ref.push(SegmentRef { curvenet, spline: seg.spline, segment: seg.spline_segment });
                 for &i in &seg.samples {
-                    spline_of[i as usize] = seg.spline;
+                    sample_ref[first + i as usize].spline = seg.spline;
                 }
             }
-            sample_spline.extend(spline_of);
             for (k, slot) in layout.constraints().slots().iter().enumerate() {
                 let id = range.slot + k as u32;
                 if let Some(s) = slot.outgoing {
@@ -289,9 +327,23 @@ impl Binding {
         }
         let cut = CutMesh::new(
             &surface,
-            CutInput { samples: &samples, segments: &segments, sample_spline: &sample_spline },
+            CutInput { samples: &samples, segments: &segments, sample_ref: &sample_ref, segment_ref: &segment_ref },
             &options.cut,
         )?;
+        let mut warnings = Vec::new();
+        for d in cut.detours() {
+            let seg = segment_ref[d.segment as usize];
+            let layout = curvenets[seg.curvenet as usize];
+            let n = layout.sampling().spline_segments(seg.spline as usize).max(1) as f64;
+            let [i, j] = segments[d.segment as usize];
+            let mid = (DVec3::from_array(samples[i as usize]) + DVec3::from_array(samples[j as usize])) * 0.5;
+            let (t, position) = ((seg.segment as f64 + 0.5) / n, mid.to_array());
+            let (path_length, segment_length) = (d.path_length, d.segment_length);
+            if options.strict {
+                return Err(Error::SegmentDetour { segment: seg, t, position, path_length, segment_length });
+            }
+            warnings.push(BindWarning::SegmentDetour { segment: seg, t, position, path_length, segment_length });
+        }
         let t2 = Instant::now();
 
         // Corners: unknown, slot or crossing row.
@@ -340,7 +392,6 @@ impl Binding {
                 touched[he.face_component(surface_face(&cut, h)) as usize] = true;
             }
         }
-        let mut warnings = Vec::new();
         let mut component_vertices = vec![0usize; he.n_components()];
         let mut vertex_component = vec![INVALID; n_vertices];
         for f in 0..surface.mesh.n_faces() {
@@ -449,6 +500,8 @@ impl Binding {
             cut_halfedges: cut.n_halfedges(),
             cracks: cut.n_cracks(),
             islands_removed: islands,
+            embedding: cut.embedding(),
+            detours: cut.detours().len(),
             unknowns: n_u,
             constraints: n_c,
             factor_nonzeros: factor.nnz(),

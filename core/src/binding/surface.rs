@@ -80,8 +80,12 @@ impl Surface {
             let va = vector_area(&corners3);
             let area = va.length();
             let extent = corners3.iter().map(|c| (*c - corners3[0]).length()).fold(0.0, f64::max);
+            let n = face.len();
+            if let Some(i) = (0..n).find(|&i| (corners3[(i + 1) % n] - corners3[i]).length() <= 1e-12 * extent) {
+                return Err(Error::CoincidentFaceVertices { face: f, a: face[i], b: face[(i + 1) % n] });
+            }
             if !(area > 1e-12 * extent * extent) || extent == 0.0 {
-                return Err(Error::ZeroAreaFace { face: f, area });
+                return Err(Error::ZeroAreaFace { face: f, vertices: face.to_vec(), area });
             }
             let normal = va / area;
             let u = (corners3[1] - corners3[0]).reject_from(normal).normalize_or_zero();

@@ -26,13 +26,27 @@ pub struct Path {
     pub faces: Vec<u32>,
 }
 
-/// Why a segment could not be traced.
+/// Why a path could not be traced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TraceFailure {
     /// The path reached a boundary edge of an open mesh.
     LeftTheSurface,
     /// The path did not arrive within the step or length budget.
     Lost,
+    /// The two points lie on different connected components: no path exists.
+    Disconnected,
+}
+
+/// How a segment's surface path was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PathMethod {
+    /// Both points share a face: the straight chord in its plane.
+    Chord,
+    /// The straightest path (the paper's choice), traced from either end.
+    Straightest,
+    /// The shortest path inside a strip of faces ([`Surface::trace_in_strip`]),
+    /// when the straightest path missed its target.
+    Fallback,
 }
 
 fn perp(e: DVec2) -> DVec2 {
@@ -90,9 +104,39 @@ impl Surface {
         best.map(|(_, f, d)| (f, d.normalize()))
     }
 
-    /// Traces the path from `a` to `b` (see the module documentation).
-    /// `tol` snaps crossings to vertices; `budget` bounds the path length.
-    pub fn trace(&self, a: Location, b: Location, tol: f64, out: &mut Path) -> Result<(), TraceFailure> {
+    /// A surface path from `a` to `b` that ends exactly at `b`: the chord
+    /// when they share a face, else the straightest path from `a` (or, when
+    /// that misses, from `b`, reversed), else the shortest path in a strip
+    /// of faces. Fails only with [`TraceFailure::Disconnected`]. `tol`
+    /// snaps crossings to vertices.
+    pub fn trace(&self, a: Location, b: Location, tol: f64, out: &mut Path) -> Result<PathMethod, TraceFailure> {
+        let mut fa = Vec::new();
+        let mut fb = Vec::new();
+        self.faces_of(a, &mut fa);
+        self.faces_of(b, &mut fb);
+        if let Some(&f) = fa.iter().find(|f| fb.contains(f)) {
+            out.points.clear();
+            out.faces.clear();
+            out.points.extend([a, b]);
+            out.faces.push(f);
+            return Ok(PathMethod::Chord);
+        }
+        if self.trace_straightest(a, b, tol, out).is_ok() {
+            return Ok(PathMethod::Straightest);
+        }
+        if self.trace_straightest(b, a, tol, out).is_ok() {
+            out.points.reverse();
+            out.faces.reverse();
+            return Ok(PathMethod::Straightest);
+        }
+        self.trace_in_strip(a, b, tol, out)?;
+        Ok(PathMethod::Fallback)
+    }
+
+    /// The straightest path from `a` to `b` (see the module documentation),
+    /// within a length budget of four times their distance plus four mean
+    /// edges. `tol` snaps crossings to vertices.
+    pub fn trace_straightest(&self, a: Location, b: Location, tol: f64, out: &mut Path) -> Result<(), TraceFailure> {
         out.points.clear();
         out.faces.clear();
         out.points.push(a);

@@ -26,12 +26,21 @@
 //!   reflex, but keeps the torsion angle away from ±π, where `atan2` would
 //!   jump between poses.
 //! - **T-junctions.** The paper replaces `m_i` by `(c_{i+1} + c_{i−1})/‖·‖`
-//!   when `t_i ∥ t_{i+1}`. Here a corner with `‖c_i‖ < T_JUNCTION_SIN`
-//!   blends smoothly from `c_i/‖c_i‖` (at `‖c_i‖ = T_JUNCTION_SIN`) to that
-//!   fallback (at `‖c_i‖ = 0`), so a T-junction bending slightly in a pose
-//!   does not flip its normal. A corner that is a T-junction in the neutral
-//!   pose has its vector oriented along the fallback in every pose. The
-//!   fallback is not orthogonal to `t_i` in general: every normal is
+//!   when `t_i ∥ t_{i+1}`. A corner that is a T-junction in the neutral
+//!   pose (`IntersectionFan::corner_sign` 0: its tangents nearly parallel,
+//!   or nearly opposite in the tangent plane so that `c_i` lies more than
+//!   60° off the surface normal, as on the cap side of a curved ring met by
+//!   one line) takes that fallback in every pose. Taking `c_i/‖c_i‖` there
+//!   gave the cap side of a ring a normal along the ring's axis whose sign
+//!   round-off decided, so a ring's two ends could disagree by a half turn
+//!   and its torsion blend twisted the cap by an angle that jumped between
+//!   ±π with the pose: a rigid rotation of a capped tube's curvenet moved
+//!   its caps by 8% of the diagonal. Other corners blend smoothly from
+//!   `c_i/‖c_i‖` (at `‖c_i‖ = T_JUNCTION_SIN`) to the fallback (at
+//!   `‖c_i‖ = 0`), so a corner straightening in a pose does not flip its
+//!   normal. The fallback sums only the neighbours that are not T-junction
+//!   corners themselves (all such corners of the fan when both neighbours
+//!   are). It is not orthogonal to `t_i` in general: every normal is
 //!   projected orthogonally to its tangent and renormalised.
 //! - **Antiparallel consecutive tangents** (a hairpin segment pair) transport
 //!   the normal unchanged (a half turn about the normal).
@@ -42,15 +51,11 @@
 
 use glam::DVec3;
 
-use super::intersections::IntersectionFan;
+use super::intersections::{IntersectionFan, T_JUNCTION_SIN};
 use super::layout::CurvenetLayout;
 use super::rotation::{orthonormalize, rotate_about, transport};
 use super::{Mat3, Side, v3};
 use crate::error::{Error, Result};
-
-/// Corners with `|t_i × t_{i+1}|` below this (about 1.15°) are treated as
-/// T-junction corners (see the module docs).
-pub const T_JUNCTION_SIN: f64 = 0.02;
 
 /// Vectors shorter than this (relative to unit vectors) are treated as zero.
 const TINY: f64 = 1e-12;
@@ -275,28 +280,32 @@ fn end_frame(
         (if e.at_start { t } else { -t }, frames[e.segment as usize][0].scale[0])
     };
     let raw = |j: usize| out_tangent(j).0.cross(out_tangent(j + 1).0);
-    let oriented = |j: usize| {
-        let c = raw(j % v);
-        if fan.corner_sign(j % v) < 0 { -c } else { c }
+    // The corner vector oriented along the surface normal; zero for a T-junction corner.
+    let oriented = |j: usize| match fan.corner_sign(j % v) {
+        0 => DVec3::ZERO,
+        s if s < 0 => -raw(j % v),
+        _ => raw(j % v),
+    };
+    let fallback = |j: usize| {
+        let near = oriented(j + 1) + oriented(j + v - 1);
+        if near.length() > TINY { near } else { (0..v).filter(|&i| i != j % v).map(oriented).sum() }
     };
     let corner_normal = |j: usize| -> Result<DVec3> {
         let j = j % v;
-        let c = raw(j);
-        let nc = c.length();
-        let fallback = oriented(j + 1) + oriented(j + v - 1);
-        let c_hat = match fan.corner_sign(j) {
-            0 if c.dot(fallback) < 0.0 => -c,
-            s if s < 0 => -c,
-            _ => c,
-        };
+        let fb = fallback(j);
+        let nf = fb.length();
+        if fan.corner_sign(j) == 0 {
+            return if nf > TINY { Ok(fb / nf) } else { Err(Error::DegenerateIntersection { point: fan.point() }) };
+        }
+        let c_hat = oriented(j);
+        let nc = c_hat.length();
         if nc >= T_JUNCTION_SIN {
             return Ok(c_hat / nc);
         }
         let lambda = 1.0 - nc / T_JUNCTION_SIN;
-        let nf = fallback.length();
         let blend = match (nc > TINY, nf > TINY) {
-            (true, true) => (1.0 - lambda) * (c_hat / nc) + lambda * (fallback / nf),
-            (false, true) => fallback,
+            (true, true) => (1.0 - lambda) * (c_hat / nc) + lambda * (fb / nf),
+            (false, true) => fb,
             (true, false) => c_hat,
             (false, false) => DVec3::ZERO,
         };
@@ -304,7 +313,7 @@ fn end_frame(
             return Ok(blend.normalize());
         }
         if nf > TINY {
-            return Ok(fallback / nf);
+            return Ok(fb / nf);
         }
         let sum: DVec3 = (0..v).map(oriented).sum();
         if sum.length() > TINY {

@@ -12,7 +12,6 @@
 
 use glam::DVec3;
 
-use super::frames::T_JUNCTION_SIN;
 use super::sampling::Sampling;
 use super::topology::Topology;
 use super::v3;
@@ -26,6 +25,18 @@ pub const COINCIDENT_ANGLE: f64 = 1e-6;
 /// A projected direction shorter than this fraction of the tangent counts as
 /// along the normal ([`Error::TangentAlongNormal`]).
 const ALONG_NORMAL: f64 = 1e-9;
+
+/// Corners with `|t_i × t_{i+1}|` below this (about 1.15°) in the neutral
+/// pose are T-junction corners (see [`IntersectionFan::corner_sign`]).
+pub const T_JUNCTION_SIN: f64 = 0.02;
+
+/// A corner whose neutral corner vector `t_i × t_{i+1}` makes more than 60°
+/// with the surface normal is a T-junction corner too: its two curves leave
+/// nearly opposite each other in the tangent plane (the cap side of a ring
+/// met by a single line), so their cross product is set by how the curves
+/// bend off the surface, not by the surface, and its direction (along the
+/// ring's axis) and orientation (decided by round-off) mean nothing.
+pub const CORNER_NORMAL_COS: f64 = 0.5;
 
 /// One curve end at an intersection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -51,7 +62,7 @@ pub struct IntersectionFan {
     emanations: Vec<Emanation>,
     /// Orientation of corner k in the neutral pose: +1 when t_k × t_{k+1}
     /// points along the surface normal, −1 against it (a reflex corner),
-    /// 0 for a T-junction corner (|t_k × t_{k+1}| < T_JUNCTION_SIN).
+    /// 0 for a T-junction corner.
     corner_signs: Vec<i8>,
 }
 
@@ -89,7 +100,9 @@ impl IntersectionFan {
     /// Orientation of corner `k` (between emanations `k` and `k + 1`) fixed in
     /// the neutral pose: `1`, `-1` (reflex corner; its corner vector is
     /// negated so that corner normals follow the surface normal) or `0`
-    /// (T-junction corner, oriented by its neighbours in every pose).
+    /// (T-junction corner: `|t_k × t_{k+1}|` below [`T_JUNCTION_SIN`], or
+    /// that vector more than 60° from the surface normal, see
+    /// [`CORNER_NORMAL_COS`]; its normal comes from its neighbours in every pose).
     pub fn corner_sign(&self, k: usize) -> i8 {
         self.corner_signs[k]
     }
@@ -160,9 +173,10 @@ pub(crate) fn intersection_fans(
         let corner_signs = (0..v)
             .map(|k| {
                 let c = direction(&emanations[k]).cross(direction(&emanations[(k + 1) % v]));
-                if c.length() < T_JUNCTION_SIN {
+                let along = c.dot(normal);
+                if c.length() < T_JUNCTION_SIN || along.abs() < CORNER_NORMAL_COS * c.length() {
                     0
-                } else if c.dot(normal) >= 0.0 {
+                } else if along >= 0.0 {
                     1
                 } else {
                     -1

@@ -299,3 +299,32 @@ pub fn max_diff(a: &Mat3, b: &Mat3) -> f64 {
 }
 
 pub const I3: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+/// A small deterministic random generator (SplitMix64) for seeded tests.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in 0..n.
+    pub fn below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+}
+
+/// The seed of a randomized test: `CURVENET_TEST_SEED` when set (to replay
+/// a failure), else `default`. Printed either way.
+pub fn test_seed(default: u64) -> u64 {
+    let seed = std::env::var("CURVENET_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default);
+    println!("seed {seed} (replay with CURVENET_TEST_SEED={seed})");
+    seed
+}

@@ -213,8 +213,8 @@ impl ServiceError {
             | E::FoldedFace { .. }
             | E::RepeatedFaceVertex { .. } => Code::InvalidMesh,
             E::SampleFarFromSurface { .. }
-            | E::SegmentLeavesSurface { .. }
             | E::SegmentNotTraced { .. }
+            | E::SegmentDetour { .. }
             | E::CurvesOverlap { .. }
             | E::CurvesCross { .. }
             | E::SegmentCrossesFaceBoundary { .. }

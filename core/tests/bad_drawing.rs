@@ -1,0 +1,233 @@
+//! Issue 13: what the binding does with badly drawn curves and degenerate
+//! meshes. A curve that bridges a concavity binds along its detour with a
+//! warning naming the segment (an error in strict mode); a segment whose
+//! samples land on two components is left out with a warning; slivers bind;
+//! meshes that cannot be bound get a typed error naming the element.
+
+mod common;
+
+use common::*;
+use curvenet_core::binding::{BindOptions, BindWarning, Binding};
+use curvenet_core::error::SegmentRef;
+use curvenet_core::{Curvenet, CurvenetLayout, Error, FrameInput, PolyMesh, SamplingOptions};
+
+/// A heightfield grid over [0, 1]² (`n` quads a side) at z = `height(x, y)`.
+fn heightfield(n: usize, height: impl Fn(f64, f64) -> f64) -> (PolyMesh, Vec<[f64; 3]>) {
+    let (mesh, pts) = plane(0.5, n);
+    let pts = pts
+        .iter()
+        .map(|p| {
+            let (x, y) = (p[0] + 0.5, p[1] + 0.5);
+            [x, y, height(x, y)]
+        })
+        .collect();
+    (mesh, pts)
+}
+
+fn bind(mesh: &PolyMesh, pts: &[[f64; 3]], net: &NetBuilder, strict: bool) -> Result<Binding, Error> {
+    let c = Curvenet::new(&net.splines, &net.points).unwrap();
+    let layout = CurvenetLayout::new(&c, mesh, pts, &SamplingOptions::default())?;
+    Binding::new(mesh, pts, &[&layout], &BindOptions::default().with_strict(strict))
+}
+
+fn neutral(b: &Binding, net: &NetBuilder) -> Vec<[f64; 3]> {
+    let mut ws = b.workspace();
+    let mut out = vec![[0.0; 3]; b.n_vertices()];
+    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None }, &mut ws, &mut out, None).unwrap();
+    out
+}
+
+fn max_error(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    a.iter().zip(b).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max)
+}
+
+/// A trench 0.04 wide and 0.3 deep across a plate; the curve crosses it in
+/// the air, so the samples above the trench project onto its two rims.
+#[test]
+fn a_curve_bridging_a_trench_binds_along_its_detour_with_a_warning() {
+    let (mesh, pts) = heightfield(100, |x, _| if (x - 0.5).abs() < 0.02 { -0.3 } else { 0.0 });
+    let mut net = NetBuilder::default();
+    net.segment([0.1, 0.5, 0.002], [0.9, 0.5, 0.002], [0.0; 3]);
+    let b = bind(&mesh, &pts, &net, false).unwrap();
+    let detours: Vec<&BindWarning> =
+        b.warnings().iter().filter(|w| matches!(w, BindWarning::SegmentDetour { .. })).collect();
+    assert!(!detours.is_empty(), "the trench crossing is reported: {:?}", b.warnings());
+    for w in &detours {
+        let BindWarning::SegmentDetour { segment, position, path_length, segment_length, t } = w else {
+            unreachable!()
+        };
+        println!("warning: {w}");
+        assert_eq!((segment.curvenet, segment.spline), (0, 0));
+        assert!((position[0] - 0.5).abs() < 0.03, "the detour is over the trench: {position:?}");
+        assert!((0.0..=1.0).contains(t));
+        assert!(*path_length > 0.6 && *path_length > 3.0 * segment_length, "down and up the trench: {path_length}");
+    }
+    assert_eq!(b.stats().detours, detours.len());
+    // It deforms: the neutral pose gives the mesh back.
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    assert!(max_error(&neutral(&b, &net), &pts) <= 1e-9 * diag);
+    // Strict mode refuses it, naming the segment.
+    let e = bind(&mesh, &pts, &net, true).unwrap_err();
+    let Error::SegmentDetour { segment, .. } = e else { panic!("{e}") };
+    assert_eq!((segment.curvenet, segment.spline), (0, 0));
+    println!("strict: {e}");
+}
+
+/// Two plates with a gap between them; one curve spans both.
+#[test]
+fn a_segment_across_two_components_is_left_out_with_a_warning() {
+    let (m1, p1) = heightfield(20, |_, _| 0.0);
+    let mut pts = p1.clone();
+    pts.extend(p1.iter().map(|p| [p[0] + 1.02, p[1], p[2]]));
+    let n = p1.len() as u32;
+    let mut idx = m1.face_vertex_indices().to_vec();
+    idx.extend(m1.face_vertex_indices().iter().map(|&v| v + n));
+    let counts: Vec<u32> = m1.face_vertex_counts().chain(m1.face_vertex_counts()).collect();
+    let mesh = PolyMesh::new(&counts, &idx, pts.len()).unwrap();
+    let mut net = NetBuilder::default();
+    net.segment([0.2, 0.5, 0.001], [1.8, 0.5, 0.001], [0.0; 3]);
+    let b = bind(&mesh, &pts, &net, false).unwrap();
+    let gaps: Vec<SegmentRef> = b
+        .warnings()
+        .iter()
+        .filter_map(|w| match w {
+            BindWarning::SegmentDetour { segment, path_length, .. } if path_length.is_infinite() => Some(*segment),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(gaps.len(), 1, "one segment spans the gap: {:?}", b.warnings());
+    assert_eq!(b.stats().embedding.disconnected, 1);
+    println!("warning: {}", b.warnings().iter().find(|w| matches!(w, BindWarning::SegmentDetour { .. })).unwrap());
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    assert!(max_error(&neutral(&b, &net), &pts) <= 1e-9 * diag);
+    // Both plates follow the curve: a translation moves both.
+    let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
+    let mut ws = b.workspace();
+    let mut out = vec![[0.0; 3]; b.n_vertices()];
+    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None }, &mut ws, &mut out, None).unwrap();
+    let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
+    assert!(max_error(&out, &shifted) <= 1e-9 * diag);
+    assert!(matches!(bind(&mesh, &pts, &net, true), Err(Error::SegmentDetour { .. })));
+}
+
+/// Triangles of aspect ratio up to 1e5 bind and reproduce the mesh.
+#[test]
+fn slivers_bind() {
+    let n = 30;
+    let (quads, pts) = heightfield(n, |x, y| 0.1 * (3.0 * x).sin() * (2.0 * y).cos());
+    // Split every quad into two triangles, then squash one row of vertices
+    // onto the next row up to 1e-5 of the spacing: that row's triangles become slivers.
+    let mut idx = Vec::new();
+    for q in quads.faces() {
+        idx.extend([q[0], q[1], q[2], q[0], q[2], q[3]]);
+    }
+    let mut pts = pts;
+    let h = 1.0 / n as f64;
+    for p in pts.iter_mut() {
+        if (p[1] - 0.5).abs() < 1e-9 {
+            p[1] += h * (1.0 - 1e-5);
+            p[2] = 0.1 * (3.0 * p[0]).sin() * (2.0 * p[1]).cos();
+        }
+    }
+    let mesh = PolyMesh::new(&vec![3; idx.len() / 3], &idx, pts.len()).unwrap();
+    let mut net = NetBuilder::default();
+    net.segment([0.1, 0.2, 0.2], [0.9, 0.85, 0.2], [0.0; 3]);
+    net.segment([0.15, 0.8, 0.2], [0.85, 0.25, 0.2], [0.0; 3]);
+    // Project the curves onto the surface height.
+    for p in &mut net.points {
+        p[2] = 0.1 * (3.0 * p[0]).sin() * (2.0 * p[1]).cos() + 0.001;
+    }
+    // The two lines cross: split them at their crossing with a shared knot.
+    let net = split_crossing(&net);
+    let b = bind(&mesh, &pts, &net, false).unwrap_or_else(|e| panic!("slivers: {e}"));
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    let e = max_error(&neutral(&b, &net), &pts);
+    println!("slivers: neutral pose off by {:.2e} of the diagonal", e / diag);
+    assert!(e <= 1e-9 * diag);
+}
+
+/// Two straight splines that cross, rebuilt as four splines meeting at a shared knot.
+fn split_crossing(net: &NetBuilder) -> NetBuilder {
+    let [a0, _, _, a1] = net.splines[0].map(|i| net.points[i as usize]);
+    let [b0, _, _, b1] = net.splines[1].map(|i| net.points[i as usize]);
+    // Intersection in xy.
+    let (d1, d2) = (sub(a1, a0), sub(b1, b0));
+    let den = d1[0] * d2[1] - d1[1] * d2[0];
+    let s = ((b0[0] - a0[0]) * d2[1] - (b0[1] - a0[1]) * d2[0]) / den;
+    let x = [a0[0] + s * d1[0], a0[1] + s * d1[1], 0.5 * (a0[2] + a1[2])];
+    let mut out = NetBuilder::default();
+    for (p, q) in [(a0, x), (x, a1), (b0, x), (x, b1)] {
+        out.segment(p, q, [0.0; 3]);
+    }
+    out
+}
+
+#[test]
+fn degenerate_meshes_are_typed_errors_naming_the_element() {
+    let (mesh, pts) = heightfield(10, |_, _| 0.0);
+    let mut net = NetBuilder::default();
+    net.segment([0.2, 0.5, 0.001], [0.8, 0.5, 0.001], [0.0; 3]);
+    let counts: Vec<u32> = mesh.face_vertex_counts().collect();
+    let idx = mesh.face_vertex_indices().to_vec();
+    // Coincident vertices: vertex 12 moved onto vertex 13. The faces sharing
+    // their edge now have a zero-length edge: named with both vertices.
+    let mut p = pts.clone();
+    p[12] = p[13];
+    let e = bind(&mesh, &p, &net, false).unwrap_err();
+    let Error::CoincidentFaceVertices { face, a, b } = e else { panic!("{e}") };
+    assert!([a, b] == [12, 13] || [a, b] == [13, 12], "{e}");
+    assert!(mesh.face(face).contains(&12) && mesh.face(face).contains(&13), "{e}");
+    println!("coincident vertices: {e}");
+    // Coincident vertices that share no face (two components touching at a
+    // point, a common modelling accident) bind.
+    let (m1, p1) = heightfield(6, |_, _| 0.0);
+    let mut p2 = p1.clone();
+    p2.extend(p1.iter().map(|q| [q[0] + 1.0, q[1], q[2]])); // the right column of one meets the left of the other
+    let k = p1.len() as u32;
+    let mut i2 = m1.face_vertex_indices().to_vec();
+    i2.extend(m1.face_vertex_indices().iter().map(|&v| v + k));
+    let c2: Vec<u32> = m1.face_vertex_counts().chain(m1.face_vertex_counts()).collect();
+    let touching = PolyMesh::new(&c2, &i2, p2.len()).unwrap();
+    let mut across = NetBuilder::default();
+    across.segment([0.2, 0.5, 0.001], [0.8, 0.5, 0.001], [0.0; 3]);
+    across.segment([1.2, 0.5, 0.001], [1.8, 0.5, 0.001], [0.0; 3]);
+    let b = bind(&touching, &p2, &across, false).unwrap_or_else(|e| panic!("touching components: {e}"));
+    assert!(max_error(&neutral(&b, &across), &p2) <= 1e-9);
+    // A zero-area face: a triangle fan whose middle vertex sits on its neighbour.
+    let mut tri_idx = Vec::new();
+    for q in mesh.faces() {
+        tri_idx.extend([q[0], q[1], q[2], q[0], q[2], q[3]]);
+    }
+    let tris = PolyMesh::new(&vec![3; tri_idx.len() / 3], &tri_idx, pts.len()).unwrap();
+    let mut p = pts.clone();
+    p[12] = p[13];
+    let e = bind(&tris, &p, &net, false).unwrap_err();
+    let Error::CoincidentFaceVertices { face, .. } = e else { panic!("{e}") };
+    assert!(tris.face(face).contains(&12), "the error names a face at the collapsed vertex: face {face}");
+    // A zero-area triangle with distinct corners: A, B and M on AB (face 3)
+    // beside a unit square cut into triangles at M.
+    let sq = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.5, 0.0, 0.0]];
+    let m = PolyMesh::new(&[3, 3, 3, 3], &[0, 4, 3, 4, 1, 2, 4, 2, 3, 0, 1, 4], 5).unwrap();
+    let e = bind(&m, &sq, &net, false).unwrap_err();
+    assert!(matches!(e, Error::ZeroAreaFace { face: 3, .. }), "{e}");
+    println!("zero area: {e}");
+    // A face repeating a vertex.
+    let mut bad = idx.clone();
+    bad[4 * 7 + 2] = bad[4 * 7];
+    let e = PolyMesh::new(&counts, &bad, pts.len()).and_then(|m| bind(&m, &pts, &net, false).map(|_| ())).unwrap_err();
+    assert!(matches!(e, Error::RepeatedFaceVertex { face: 7, .. }), "{e}");
+    println!("repeated vertex: {e}");
+    // A non-manifold vertex: two plates touching at one corner.
+    let (m1, p1) = heightfield(4, |_, _| 0.0);
+    let mut p2 = p1.clone();
+    p2.extend(p1.iter().map(|q| [q[0] + 1.0, q[1] + 1.0, q[2]]));
+    let n = p1.len() as u32;
+    let corner = 4 * 5 + 4; // (1, 1) of the first plate
+    let mut i2 = m1.face_vertex_indices().to_vec();
+    i2.extend(m1.face_vertex_indices().iter().map(|&v| if v == 0 { corner } else { v + n }));
+    let c2: Vec<u32> = m1.face_vertex_counts().chain(m1.face_vertex_counts()).collect();
+    let bowtie = PolyMesh::new(&c2, &i2, p2.len()).unwrap();
+    let e = bind(&bowtie, &p2, &net, false).unwrap_err();
+    assert!(matches!(e, Error::NonManifoldVertex { vertex, .. } if vertex == corner), "{e}");
+    println!("non-manifold vertex: {e}");
+}
