@@ -199,6 +199,17 @@ pub struct BindingStats {
     pub cut_halfedges: usize,
     pub cracks: usize,
     pub islands_removed: usize,
+    /// Segments embedded as a chord inside one face.
+    pub chord_paths: usize,
+    /// Segments embedded by the straightest path (the paper's choice).
+    pub straightest_paths: usize,
+    /// Segments embedded by the fallback (shortest path in a strip of
+    /// faces) after the straightest path missed.
+    pub fallback_paths: usize,
+    /// Segments left out: their samples project onto two mesh components.
+    pub segments_left_out: usize,
+    /// Segments bound along a detour or left out (`segment_detour` warnings).
+    pub detours: usize,
     pub unknowns: usize,
     pub constraints: usize,
     pub factor_nonzeros: usize,
@@ -221,9 +232,31 @@ pub struct BindingTimings {
 /// Something the binding did that the user should know about.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// `untouched_component`, `islands_removed` or `degenerate_cut_faces`.
+    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces` or
+    /// `segment_detour`.
     pub code: String,
     pub message: String,
+    /// The segment a `segment_detour` warning is about.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segment: Option<SegmentAt>,
+}
+
+/// A curvenet segment and where it is: the curvenet (in the binding
+/// request's order), the spline within it, the segment within the spline
+/// (from the spline's control point 0), the segment's midpoint as a
+/// fraction of the spline's arc length, and that midpoint in the projection pose.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct SegmentAt {
+    pub curvenet: u32,
+    pub spline: u32,
+    pub segment: u32,
+    pub t: f64,
+    pub position: [f64; 3],
+    /// Length of the segment's surface path; absent when the segment was
+    /// left out (its samples project onto two mesh components).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path_length: Option<f64>,
+    pub segment_length: f64,
 }
 
 /// How blend shapes combine with the curvenet deformation.

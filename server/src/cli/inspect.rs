@@ -103,9 +103,22 @@ struct BindStatsReport {
     cut_halfedges: usize,
     cracks: usize,
     islands_removed: usize,
+    /// How the segments were embedded: chords inside one face, straightest
+    /// paths, fallback paths (shortest in a strip of faces), left out
+    /// (samples on two components); and detours (warnings).
+    embedded: EmbeddedReport,
     unknowns: usize,
     constraints: usize,
     factor_nonzeros: usize,
+}
+
+#[derive(Serialize)]
+struct EmbeddedReport {
+    chord: usize,
+    straightest: usize,
+    fallback: usize,
+    left_out: usize,
+    detours: usize,
 }
 
 #[derive(Serialize)]
@@ -404,6 +417,13 @@ fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
                     cut_halfedges: st.cut_halfedges,
                     cracks: st.cracks,
                     islands_removed: st.islands_removed,
+                    embedded: EmbeddedReport {
+                        chord: st.embedding.chord,
+                        straightest: st.embedding.straightest,
+                        fallback: st.embedding.fallback,
+                        left_out: st.embedding.disconnected,
+                        detours: st.detours,
+                    },
                     unknowns: st.unknowns,
                     constraints: st.constraints,
                     factor_nonzeros: st.factor_nonzeros,
@@ -764,6 +784,17 @@ fn binding_text(s: &mut String, b: &BindingReport) {
             plural(st.cracks),
             st.islands_removed,
             plural(st.islands_removed)
+        );
+        let e = &st.embedded;
+        let _ = writeln!(
+            s,
+            "  segments embedded: {} inside one face, {} by straightest path, {} by fallback path, {} left out; {} detour{}",
+            e.chord,
+            e.straightest,
+            e.fallback,
+            e.left_out,
+            e.detours,
+            plural(e.detours)
         );
         let _ = writeln!(
             s,

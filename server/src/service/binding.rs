@@ -10,7 +10,7 @@ use curvenet_core::binding::CutOptions;
 use curvenet_core::binding::surface::Surface;
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_core::{BindOptions, BindWarning, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
-use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, Warning};
+use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, SegmentAt, Warning};
 
 use crate::cache::{Entry, Key, estimate_bytes, hex};
 use crate::error::{Code, Phase, ServiceError};
@@ -184,6 +184,11 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
             cut_halfedges: s.cut_halfedges,
             cracks: s.cracks,
             islands_removed: s.islands_removed,
+            chord_paths: s.embedding.chord,
+            straightest_paths: s.embedding.straightest,
+            fallback_paths: s.embedding.fallback,
+            segments_left_out: s.embedding.disconnected,
+            detours: s.detours,
             unknowns: s.unknowns,
             constraints: s.constraints,
             factor_nonzeros: s.factor_nonzeros,
@@ -212,11 +217,23 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
 }
 
 fn warning(w: &BindWarning) -> Warning {
-    let code = match w {
-        BindWarning::UntouchedComponent { .. } => "untouched_component",
-        BindWarning::IslandsRemoved { .. } => "islands_removed",
-        BindWarning::DegenerateCutFaces { .. } => "degenerate_cut_faces",
-        _ => "other",
+    let (code, segment) = match w {
+        BindWarning::UntouchedComponent { .. } => ("untouched_component", None),
+        BindWarning::IslandsRemoved { .. } => ("islands_removed", None),
+        BindWarning::DegenerateCutFaces { .. } => ("degenerate_cut_faces", None),
+        BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => (
+            "segment_detour",
+            Some(SegmentAt {
+                curvenet: segment.curvenet,
+                spline: segment.spline,
+                segment: segment.segment,
+                t: *t,
+                position: *position,
+                path_length: path_length.is_finite().then_some(*path_length),
+                segment_length: *segment_length,
+            }),
+        ),
+        _ => ("other", None),
     };
-    Warning { code: code.into(), message: w.to_string() }
+    Warning { code: code.into(), message: w.to_string(), segment }
 }

@@ -5,7 +5,7 @@ use curvenet_schema::wire::{
     BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
     BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest,
     DeformResponse, ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
-    InbetweenSpec, Warning,
+    InbetweenSpec, SegmentAt, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
@@ -62,7 +62,7 @@ impl Modify for BearerAuth {
     ),
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
-        BindingTimings, Warning, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
+        BindingTimings, Warning, SegmentAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
         DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
         viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,

@@ -553,6 +553,7 @@ pub fn data(entry: &Entry) -> ViewerData {
                         distance(worst as usize) / diagonal * 100.0,
                         curvenet_core::binding::cut::DEFAULT_MAX_PROJECTION_DISTANCE * 100.0
                     ),
+                    segment: None,
                 });
             }
             CurvenetView {
