@@ -231,3 +231,40 @@ fn degenerate_meshes_are_typed_errors_naming_the_element() {
     assert!(matches!(e, Error::NonManifoldVertex { vertex, .. } if vertex == corner), "{e}");
     println!("non-manifold vertex: {e}");
 }
+
+/// The fish's subdivision cage has four quads and pentagons so warped that
+/// they fold over themselves in their own plane: they are split into
+/// triangles (named in a warning) and the cage binds like any mesh.
+#[test]
+fn a_cage_with_folded_faces_binds_with_them_split() {
+    let (mesh, pts) = load_obj(&format!("{MESH_DIR}/fish_control_mesh.obj"));
+    let bvh = curvenet_core::ClosestPointBvh::new(&mesh, &pts).unwrap();
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    // A grid of curves on the side of the body, a tenth of the diagonal wide.
+    // Centred on the largest face (the middle of the body's side).
+    let face_area = |f: &[u32]| {
+        let p: Vec<glam::DVec3> = f.iter().map(|&v| glam::DVec3::from_array(pts[v as usize])).collect();
+        curvenet_core::polygon_laplacian::vector_area(&p).length()
+    };
+    let big = mesh.faces().max_by(|a, b| face_area(a).total_cmp(&face_area(b))).unwrap();
+    let c: [f64; 3] = std::array::from_fn(|k| big.iter().map(|&v| pts[v as usize][k]).sum::<f64>() / big.len() as f64);
+    let net = surface_grid(&bvh, c, 0.03 * diag);
+    let b = bind(&mesh, &pts, &net, false).unwrap_or_else(|e| panic!("fish cage: {e}"));
+    let split: Vec<&BindWarning> =
+        b.warnings().iter().filter(|w| matches!(w, BindWarning::FacesSplit { .. })).collect();
+    assert_eq!(split.len(), 1, "{:?}", b.warnings());
+    let BindWarning::FacesSplit { faces } = split[0] else { unreachable!() };
+    assert_eq!(faces, &[18, 19, 74, 75]);
+    println!("warning: {}", split[0]);
+    assert!(b.surface().mesh().n_faces() > mesh.n_faces());
+    assert!(max_error(&neutral(&b, &net), &pts) <= 1e-9 * diag);
+    let rot = rotation(normalize([0.2, 1.0, -0.4]), 0.7);
+    let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
+    let mut ws = b.workspace();
+    let mut out = vec![[0.0; 3]; b.n_vertices()];
+    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None }, &mut ws, &mut out, None).unwrap();
+    let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
+    let e = max_error(&out, &moved);
+    println!("fish cage: a rotation of the curvenet moves the cage {:.1e} of the diagonal off the rotation", e / diag);
+    assert!(e <= 1e-6 * diag);
+}

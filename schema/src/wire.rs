@@ -232,7 +232,7 @@ pub struct BindingTimings {
 /// Something the binding did that the user should know about.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces` or
+    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split` or
     /// `segment_detour`.
     pub code: String,
     pub message: String,

@@ -543,10 +543,14 @@ impl<'s> Registry<'s> {
                 }
             }
             pslg.check_crossings().map_err(|(segment, other)| match other {
-                None => Error::SegmentCrossesFaceBoundary { segment: input.segment(segment), face: f },
-                Some(other) => {
-                    Error::CurvesCross { segment: input.segment(segment), other: input.segment(other), face: f }
+                None => {
+                    Error::SegmentCrossesFaceBoundary { segment: input.segment(segment), face: surface.input_face(f) }
                 }
+                Some(other) => Error::CurvesCross {
+                    segment: input.segment(segment),
+                    other: input.segment(other),
+                    face: surface.input_face(f),
+                },
             })?;
             let islands = pslg.remove_islands(nb);
             for &v in &islands.removed_nodes {

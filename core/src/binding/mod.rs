@@ -89,6 +89,9 @@ pub enum BindWarning {
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
     DegenerateCutFaces { count: usize },
+    /// Input faces folded over themselves in their own plane (strongly
+    /// warped polygons) and were split into triangles ([`Surface::split_faces`]).
+    FacesSplit { faces: Vec<u32> },
     /// A segment whose surface path is much longer than the segment
     /// (longer than [`DETOUR_RATIO`] × its length + [`DETOUR_EDGES`] mean
     /// edges: its samples project across a concavity or onto the far side
@@ -112,6 +115,16 @@ impl std::fmt::Display for BindWarning {
             }
             BindWarning::DegenerateCutFaces { count } => {
                 write!(f, "{count} zero-area cut-faces were left out of the Laplacian")
+            }
+            BindWarning::FacesSplit { faces } => {
+                let shown: Vec<String> = faces.iter().take(10).map(|f| f.to_string()).collect();
+                let more = if faces.len() > 10 { format!(" and {} more", faces.len() - 10) } else { String::new() };
+                write!(
+                    f,
+                    "{} faces fold over themselves in their own plane and were split into triangles: {}{more}",
+                    faces.len(),
+                    shown.join(", ")
+                )
             }
             BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => {
                 let [x, y, z] = position;
@@ -331,6 +344,9 @@ impl Binding {
             &options.cut,
         )?;
         let mut warnings = Vec::new();
+        if !surface.split_faces().is_empty() {
+            warnings.push(BindWarning::FacesSplit { faces: surface.split_faces().to_vec() });
+        }
         for d in cut.detours() {
             let seg = segment_ref[d.segment as usize];
             let layout = curvenets[seg.curvenet as usize];

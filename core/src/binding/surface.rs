@@ -39,7 +39,12 @@ impl FacePlane {
 /// The mesh in the projection pose, prepared for binding. Immutable.
 #[derive(Debug, Clone)]
 pub struct Surface {
+    /// The input mesh, with folded faces split into triangles.
     pub(crate) mesh: PolyMesh,
+    /// The input face of every face of `mesh`.
+    pub(crate) input_face: Vec<u32>,
+    /// The input faces that were split (see [`Surface::new`]).
+    pub(crate) split_faces: Vec<u32>,
     pub(crate) halfedges: Halfedges,
     pub(crate) points: Vec<DVec3>,
     pub(crate) planes: Vec<FacePlane>,
@@ -61,43 +66,62 @@ pub struct Surface {
 impl Surface {
     /// Validates and prepares `mesh` posed at `points`. Errors name the
     /// offending face, edge or vertex: non-finite points, non-manifold or
-    /// inconsistently oriented connectivity, zero-area faces, faces that
-    /// fold over themselves in their own plane.
+    /// inconsistently oriented connectivity, coincident corners, zero-area
+    /// faces. A face that folds over itself in its own plane (a strongly
+    /// warped quad of a coarse subdivision cage) is split into triangles
+    /// (see [`Surface::split_faces`]); one that cannot be split is refused.
     pub fn new(mesh: &PolyMesh, points: &[[f64; 3]]) -> Result<Self> {
         mesh.check_points(points, "mesh point")?;
-        let halfedges = Halfedges::new(mesh)?;
+        Halfedges::new(mesh)?;
         let p: Vec<DVec3> = points.iter().map(|&x| DVec3::from_array(x)).collect();
+        // Split folded faces first, so the surface's faces are all flat enough.
+        let mut split_faces = Vec::new();
+        let mut counts = Vec::with_capacity(mesh.n_faces());
+        let mut indices = Vec::with_capacity(mesh.face_vertex_indices().len());
+        let mut input_face = Vec::with_capacity(mesh.n_faces());
+        let mut corners3 = Vec::new();
+        for (f, face) in mesh.faces().enumerate() {
+            corners3.clear();
+            corners3.extend(face.iter().map(|&v| p[v as usize]));
+            match face_plane(f, face, &corners3) {
+                Err(Error::FoldedFace { .. }) => {
+                    let fan = split_folded(&corners3).ok_or(Error::FoldedFace { face: f })?;
+                    for t in fan {
+                        counts.push(3);
+                        indices.extend(t.map(|k| face[k]));
+                        input_face.push(f as u32);
+                    }
+                    split_faces.push(f as u32);
+                }
+                Err(e) => return Err(e),
+                Ok(_) => {
+                    counts.push(face.len() as u32);
+                    indices.extend_from_slice(face);
+                    input_face.push(f as u32);
+                }
+            }
+        }
+        let mesh =
+            if split_faces.is_empty() { mesh.clone() } else { PolyMesh::new(&counts, &indices, mesh.n_vertices())? };
+        let halfedges = Halfedges::new(&mesh)?;
         let diagonal = bounding_box_diagonal(points);
         let mut planes = Vec::with_capacity(mesh.n_faces());
         let mut corners_2d = Vec::with_capacity(halfedges.n_halfedges());
         let mut triangles = Vec::with_capacity(halfedges.n_halfedges());
-        let mut corners3 = Vec::new();
         let mut scratch = Vec::new();
         let mut face_tri_start = vec![0u32];
         for (f, face) in mesh.faces().enumerate() {
             corners3.clear();
             corners3.extend(face.iter().map(|&v| p[v as usize]));
-            let va = vector_area(&corners3);
-            let area = va.length();
-            let extent = corners3.iter().map(|c| (*c - corners3[0]).length()).fold(0.0, f64::max);
-            let n = face.len();
-            if let Some(i) = (0..n).find(|&i| (corners3[(i + 1) % n] - corners3[i]).length() <= 1e-12 * extent) {
-                return Err(Error::CoincidentFaceVertices { face: f, a: face[i], b: face[(i + 1) % n] });
-            }
-            if !(area > 1e-12 * extent * extent) || extent == 0.0 {
-                return Err(Error::ZeroAreaFace { face: f, vertices: face.to_vec(), area });
-            }
-            let normal = va / area;
-            let u = (corners3[1] - corners3[0]).reject_from(normal).normalize_or_zero();
-            let u = if u == DVec3::ZERO { normal.any_orthonormal_vector() } else { u };
-            let plane = FacePlane { origin: corners3[0], u, v: normal.cross(u), normal };
+            let named = |e: Error| match e {
+                Error::FoldedFace { .. } => Error::FoldedFace { face: input_face[f] as usize },
+                e => e,
+            };
+            let (plane, poly) = face_plane(input_face[f] as usize, face, &corners3).map_err(named)?;
             let start = corners_2d.len() as u32;
-            corners_2d.extend(corners3.iter().map(|&c| plane.to_2d(c)));
-            let poly = &corners_2d[start as usize..];
-            if signed_area(poly) <= 0.0 || !is_simple(poly) {
-                return Err(Error::FoldedFace { face: f });
-            }
-            triangulate(poly, &mut scratch).ok_or(Error::FoldedFace { face: f })?;
+            corners_2d.extend(poly);
+            triangulate(&corners_2d[start as usize..], &mut scratch)
+                .ok_or(Error::FoldedFace { face: input_face[f] as usize })?;
             triangles.extend(scratch.iter().map(|t| t.map(|k| start + k)));
             face_tri_start.push(triangles.len() as u32);
             planes.push(plane);
@@ -122,7 +146,9 @@ impl Surface {
             fill[v] += 1;
         }
         Ok(Self {
-            mesh: mesh.clone(),
+            mesh,
+            input_face,
+            split_faces,
             halfedges,
             points: p,
             planes,
@@ -142,8 +168,22 @@ impl Surface {
         self.triangles[t as usize].map(|h| points[self.halfedges.tail(h) as usize].into())
     }
 
+    /// The surface's mesh: the input mesh with folded faces split into
+    /// triangles ([`Self::split_faces`]); same vertices, and the same faces
+    /// in the same order when nothing was split.
     pub fn mesh(&self) -> &PolyMesh {
         &self.mesh
+    }
+    /// The input face that face `f` of [`Self::mesh`] comes from.
+    pub fn input_face(&self, f: u32) -> u32 {
+        self.input_face[f as usize]
+    }
+    /// Input faces that folded over themselves under projection onto their
+    /// own plane and were split into triangles (a fan from the corner whose
+    /// triangles all face along the polygon's vector area, the most even
+    /// such fan); the Laplacian there is the triangles' cotangent one.
+    pub fn split_faces(&self) -> &[u32] {
+        &self.split_faces
     }
     pub fn halfedges(&self) -> &Halfedges {
         &self.halfedges
@@ -158,6 +198,60 @@ impl Surface {
     pub fn closest_points(&self) -> &ClosestPointBvh {
         &self.bvh
     }
+}
+
+/// The plane of face `f` (corners `face` at `corners3`) and its corners in
+/// it: coincident corners, zero area and folding are typed errors.
+fn face_plane(f: usize, face: &[u32], corners3: &[DVec3]) -> Result<(FacePlane, Vec<DVec2>)> {
+    let va = vector_area(corners3);
+    let area = va.length();
+    let extent = corners3.iter().map(|c| (*c - corners3[0]).length()).fold(0.0, f64::max);
+    let n = face.len();
+    if let Some(i) = (0..n).find(|&i| (corners3[(i + 1) % n] - corners3[i]).length() <= 1e-12 * extent) {
+        return Err(Error::CoincidentFaceVertices { face: f, a: face[i], b: face[(i + 1) % n] });
+    }
+    if !(area > 1e-12 * extent * extent) || extent == 0.0 {
+        return Err(Error::ZeroAreaFace { face: f, vertices: face.to_vec(), area });
+    }
+    let normal = va / area;
+    let u = (corners3[1] - corners3[0]).reject_from(normal).normalize_or_zero();
+    let u = if u == DVec3::ZERO { normal.any_orthonormal_vector() } else { u };
+    let plane = FacePlane { origin: corners3[0], u, v: normal.cross(u), normal };
+    let poly: Vec<DVec2> = corners3.iter().map(|&c| plane.to_2d(c)).collect();
+    if signed_area(&poly) <= 0.0 || !is_simple(&poly) {
+        return Err(Error::FoldedFace { face: f });
+    }
+    Ok((plane, poly))
+}
+
+/// A fan of triangles (corner indices) for a folded polygon: the fan whose
+/// triangles face most along the polygon's vector area (the largest
+/// smallest projected area; a strongly warped quad can have one triangle
+/// facing away, a crease sharper than a right angle, which the surface then
+/// has). `None` when the polygon is (nearly) planar, since then it folds
+/// because its edges cross and no split makes it a surface, or when every
+/// fan has a triangle of zero area.
+fn split_folded(corners3: &[DVec3]) -> Option<Vec<[usize; 3]>> {
+    let n = corners3.len();
+    let normal = vector_area(corners3).normalize_or_zero();
+    let extent = corners3.iter().map(|c| (*c - corners3[0]).length()).fold(0.0, f64::max);
+    let warp = corners3.iter().map(|c| (*c - corners3[0]).dot(normal).abs()).fold(0.0, f64::max);
+    if warp <= 1e-3 * extent {
+        return None;
+    }
+    let mut best: Option<(f64, usize)> = None;
+    for c in 0..n {
+        let tri = |k: usize| (corners3[(c + k) % n] - corners3[c]).cross(corners3[(c + k + 1) % n] - corners3[c]);
+        if (1..n - 1).any(|k| !(tri(k).length() > 1e-12 * extent * extent)) {
+            continue;
+        }
+        let smallest = (1..n - 1).map(|k| 0.5 * tri(k).dot(normal)).fold(f64::INFINITY, f64::min);
+        if best.is_none_or(|(m, _)| smallest > m) {
+            best = Some((smallest, c));
+        }
+    }
+    let (_, c) = best?;
+    Some((1..n - 1).map(|k| [c, (c + k) % n, (c + k + 1) % n]).collect())
 }
 
 /// Twice-free signed area of a 2D polygon (positive when counter-clockwise).

@@ -221,6 +221,7 @@ fn warning(w: &BindWarning) -> Warning {
         BindWarning::UntouchedComponent { .. } => ("untouched_component", None),
         BindWarning::IslandsRemoved { .. } => ("islands_removed", None),
         BindWarning::DegenerateCutFaces { .. } => ("degenerate_cut_faces", None),
+        BindWarning::FacesSplit { .. } => ("faces_split", None),
         BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => (
             "segment_detour",
             Some(SegmentAt {
