@@ -57,7 +57,8 @@ pub struct Cholesky {
 
 impl Cholesky {
     /// Orders (AMD), analyses and factors `a`. Fails with
-    /// [`Error::NotPositiveDefinite`] when `a` is not numerically SPD.
+    /// [`Error::NotPositiveDefinite`] naming the row (in `a`'s order) of the
+    /// first non-positive pivot when `a` is not numerically SPD.
     pub fn new(a: &SymmetricTriplets) -> Result<Self> {
         Self::with_threshold(a, SupernodalThreshold::AUTO)
     }
@@ -96,7 +97,15 @@ impl Cholesky {
                 MemStack::new(&mut mem),
                 Default::default(),
             )
-            .map_err(|_| Error::NotPositiveDefinite)?;
+            .map_err(|e| {
+                // faer names the failing pivot 1-based in the permuted order; map it back.
+                let faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } = e;
+                let pivot = index.checked_sub(1).and_then(|p| match symbolic.perm() {
+                    Some(perm) => perm.arrays().0.get(p).map(|&i| i as usize),
+                    None => Some(p),
+                });
+                Error::NotPositiveDefinite { pivot }
+            })?;
         let perm: Vec<u32> = match symbolic.perm() {
             Some(p) => p.arrays().0.to_vec(),
             None => (0..n as u32).collect(),
@@ -303,6 +312,12 @@ mod tests {
     #[test]
     fn indefinite_matrices_are_refused() {
         let a = SymmetricTriplets { n: 2, entries: vec![(0, 0, 1.0), (1, 0, 2.0), (1, 1, 1.0)] };
-        assert_eq!(Cholesky::new(&a).unwrap_err(), Error::NotPositiveDefinite);
+        assert!(matches!(Cholesky::new(&a).unwrap_err(), Error::NotPositiveDefinite { pivot: Some(_) }));
+        // A diagonal matrix, positive but for row 3 of 5: the error names row 3, whatever the ordering.
+        let d = SymmetricTriplets {
+            n: 5,
+            entries: (0..5).map(|i| (i, i, if i == 3 { -1.0 } else { 1.0 + i as f64 })).collect(),
+        };
+        assert_eq!(Cholesky::new(&d).unwrap_err(), Error::NotPositiveDefinite { pivot: Some(3) });
     }
 }

@@ -75,8 +75,8 @@ pub enum Error {
     #[error("mesh component {component} ({vertices} vertices) is touched by no curvenet")]
     UntouchedComponent { component: usize, vertices: usize },
     /// A matrix that must be symmetric positive definite is not (numerically).
-    #[error("the system matrix is not positive definite")]
-    NotPositiveDefinite,
+    #[error("the system matrix is not positive definite{}", pivot.map(|p| format!(" (first failing pivot: row {p})")).unwrap_or_default())]
+    NotPositiveDefinite { pivot: Option<usize> },
     /// A feature not available yet.
     #[error("not supported yet: {what}")]
     Unsupported { what: &'static str },

@@ -499,9 +499,16 @@ impl Binding {
             Cholesky::new(&SymmetricTriplets { n: 0, entries: Vec::new() })?
         } else {
             Cholesky::new(&SymmetricTriplets { n: n_u, entries: k_entries }).map_err(|e| match e {
-                Error::NotPositiveDefinite => Error::Internal {
-                    what: "VᵀLV is not positive definite although every unknown's component is constrained".into(),
-                },
+                Error::NotPositiveDefinite { pivot } => {
+                    let at = pivot.and_then(|u| unknown_vertex.get(u)).map_or(String::new(), |&v| {
+                        format!(" (first failing pivot at mesh vertex {v}, component {})", vertex_component[v as usize])
+                    });
+                    Error::Internal {
+                        what: format!(
+                            "VᵀLV is not positive definite although every unknown's component is constrained{at}"
+                        ),
+                    }
+                }
                 other => other,
             })?
         };

@@ -219,7 +219,7 @@ impl ServiceError {
             | E::CurvesCross { .. }
             | E::SegmentCrossesFaceBoundary { .. }
             | E::UntouchedComponent { .. }
-            | E::NotPositiveDefinite
+            | E::NotPositiveDefinite { .. }
             | E::DegenerateSurfaceFace { .. } => Code::BindingFailed,
             E::SegmentCollapsed { .. } | E::DegenerateIntersection { .. } if phase == Phase::Frame => {
                 Code::DegeneratePose
