@@ -22,6 +22,13 @@ pub enum Error {
     /// A coordinate is NaN or infinite.
     #[error("{what} {index} has a non-finite coordinate {value:?}")]
     NonFinite { what: &'static str, index: usize, value: [f64; 3] },
+    /// A scalar input (a weight) is NaN or infinite.
+    #[error("{what} {index} is {value}, not a finite number")]
+    NonFiniteScalar { what: &'static str, index: usize, value: f64 },
+    /// An error about one curvenet's own shape (its splines, sampling or
+    /// intersections), naming the curvenet by its index in the binding.
+    #[error("curvenet {curvenet}: {source}")]
+    Curvenet { curvenet: u32, source: Box<Error> },
     /// Two arrays that must have the same length do not.
     #[error("{what}: expected {expected} entries, got {got}")]
     CountMismatch { what: &'static str, expected: usize, got: usize },
