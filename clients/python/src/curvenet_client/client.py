@@ -118,6 +118,11 @@ class Client:
 
     The client keeps one keep-alive connection per thread; it may be shared
     by threads. ``with Client(...) as c:`` closes the connections at the end.
+
+    ``stats`` counts what the client did on its own: ``requests`` (HTTP
+    exchanges, tries included), ``retries``, ``retry:<status>`` or
+    ``retry:connection`` per cause, ``rebinds`` (evicted bindings re-posted)
+    and ``batch_splits`` (batches split after a 413).
     """
 
     def __init__(
@@ -162,6 +167,11 @@ class Client:
         self._local = threading.local()
         self._connections: list[http.client.HTTPConnection] = []
         self._lock = threading.Lock()
+        self.stats: collections.Counter[str] = collections.Counter()
+
+    def _count(self, *keys: str) -> None:
+        with self._lock:
+            self.stats.update(keys)
 
     # ------------------------------------------------------------------ connections
 
@@ -218,6 +228,7 @@ class Client:
         """One try on this thread's connection. Raises OSError or
         http.client.HTTPException when no answer came."""
         conn = self._connection()
+        self._count("requests")
         try:
             try:
                 conn.request(method, self._prefix + path, body=body, headers=self._headers(content_type, body))
@@ -264,6 +275,7 @@ class Client:
                         "transport",
                         f"{method} {self.url}{path}: no answer after {attempt + 1} tries: {type(e).__name__}: {e}",
                     ) from e
+                self._count("retries", "retry:connection")
                 time.sleep(self._delay(attempt, None))
                 attempt += 1
                 continue
@@ -276,6 +288,7 @@ class Client:
                 retry_after=_retry_after(answer.headers.get("retry-after")),
             )
             if answer.status in RETRY_STATUSES and attempt < self.retries:
+                self._count("retries", f"retry:{answer.status}")
                 time.sleep(self._delay(attempt, err.retry_after))
                 attempt += 1
                 continue
@@ -432,6 +445,7 @@ class Binding:
             self._set_info(info)
             self._generation += 1
             self.rebound += 1
+            self.client._count("rebinds")
 
     def _with_rebind(self, send: Callable[[str], T]) -> T:
         tries = 0
@@ -598,6 +612,7 @@ class Binding:
         except PayloadTooLargeError:
             if len(chunk) == 1:
                 raise
+            self.client._count("batch_splits")
             refused = sum(self.client._body_estimate(f) for f in chunk)
             self.client.max_body_bytes = max(1, min(self.client.max_body_bytes, refused // 2))
             half = len(chunk) // 2
