@@ -98,6 +98,7 @@ def test_server_restarts_between_frames_are_recovered(start_server, baked: dict)
             out[t] = binding.deform(f.posed, f.rest, f.blend_shape_weights)
         assert binding.rebound == 2 and binding.id == first_id
         assert client.stats["retry:connection"] >= 1  # refused while the server was down
+        assert client.stats["stale_connections"] >= 1  # the kept-alive connection to the killed process
         assert all(np.array_equal(out[t], baked["hand_skinned"][t]) for t in times)
     deadline = time.monotonic() + 30
     while server.proc is None and time.monotonic() < deadline:  # the timer's start, for the teardown

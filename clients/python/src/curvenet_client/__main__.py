@@ -31,7 +31,6 @@ the client cannot read).
 from __future__ import annotations
 
 import argparse
-import os
 import shutil
 import subprocess
 import sys

@@ -11,6 +11,9 @@ same file), so the client retries whatever did not get a definite answer:
   ``Retry-After`` when that is longer (also capped at ``max_backoff``), each
   wait shortened by up to a quarter at random so that many clients do not
   retry in step;
+- a kept-alive connection found closed when reused (the server restarted,
+  or closed it idle): once more at once on a new connection, not counted as
+  a retry;
 - 404 ``unknown_binding`` on a frame: the :class:`Binding` posts its request
   again (same content, same id) and repeats the frame, up to ``rebinds`` times.
 
@@ -41,7 +44,6 @@ import numpy.typing as npt
 
 from ._version import __version__
 from .errors import (
-    CurvenetError,
     PayloadTooLargeError,
     ProtocolError,
     TransportError,
@@ -121,8 +123,10 @@ class Client:
 
     ``stats`` counts what the client did on its own: ``requests`` (HTTP
     exchanges, tries included), ``retries``, ``retry:<status>`` or
-    ``retry:connection`` per cause, ``rebinds`` (evicted bindings re-posted)
-    and ``batch_splits`` (batches split after a 413).
+    ``retry:connection`` per cause, ``stale_connections`` (a kept-alive
+    connection found closed: retried at once on a new one, not counted as a
+    retry), ``rebinds`` (evicted bindings re-posted) and ``batch_splits``
+    (batches split after a 413).
     """
 
     def __init__(
@@ -228,6 +232,7 @@ class Client:
         """One try on this thread's connection. Raises OSError or
         http.client.HTTPException when no answer came."""
         conn = self._connection()
+        self._local.reused = conn.sock is not None
         self._count("requests")
         try:
             try:
@@ -262,6 +267,7 @@ class Client:
     ) -> _Answer:
         """Sends a request with the retry policy; returns a 2xx answer or raises."""
         attempt = 0
+        stale_retried = False
         while True:
             try:
                 answer = self._send_once(method, path, body, content_type)
@@ -270,6 +276,16 @@ class Client:
                     "transport", f"{method} {path}: no answer within {self.timeout} s (timeout): {e}"
                 ) from e
             except (OSError, http.client.HTTPException) as e:
+                if (
+                    getattr(self._local, "reused", False)
+                    and isinstance(e, (ConnectionResetError, BrokenPipeError, http.client.RemoteDisconnected))
+                    and not stale_retried
+                ):
+                    # A kept-alive connection the server had closed (idle, or
+                    # restarted): try once more on a new one, at once.
+                    stale_retried = True
+                    self._count("stale_connections")
+                    continue
                 if attempt >= self.retries:
                     raise TransportError(
                         "transport",
@@ -324,11 +340,13 @@ class Client:
         return True
 
     def health(self) -> bool:
-        """``GET /healthz``: whether the process answers (no token needed)."""
+        """``GET /healthz``: whether the process answers (no token needed).
+        One try, no retries: a health check answers now or not at all."""
         try:
-            return bool(self._json("GET", "/healthz").get("status") == "ok")
-        except CurvenetError:
+            answer = self._send_once("GET", "/healthz", None, None)
+        except (OSError, http.client.HTTPException):
             return False
+        return answer.status == 200
 
     def ready(self) -> bool:
         """``GET /readyz``: whether the server accepts work (not draining).
@@ -363,6 +381,14 @@ class Client:
     # ------------------------------------------------------------------ frames
 
     def _post_frames(self, binding_id: str, frames: Sequence[Frame], gradients: bool, batch: bool) -> list[FrameResult]:
+        results = self._post_frames_once(binding_id, frames, gradients, batch)
+        if len(results) != len(frames):
+            raise ProtocolError("protocol", f"{len(frames)} frames were sent but {len(results)} came back", status=200)
+        return results
+
+    def _post_frames_once(
+        self, binding_id: str, frames: Sequence[Frame], gradients: bool, batch: bool
+    ) -> list[FrameResult]:
         path = f"/v1/bindings/{binding_id}/frames" + (":batch" if batch else "")
         if self.protocol == "binary":
             body = encode_frames(frames, gradients=gradients, batch=batch)
