@@ -158,3 +158,16 @@ def test_binary_answers_decode_and_bad_framing_is_refused() -> None:
             decode_frames(broken, batch=False)
     with pytest.raises(ProtocolError, match="batch"):
         decode_frames(good, batch=True)
+
+
+def test_back_off_delays() -> None:
+    from curvenet_client import Client
+
+    c = Client("http://127.0.0.1:1", backoff=0.25, max_backoff=10.0)
+    for _ in range(200):
+        assert 0.1875 <= c._delay(0, None) <= 0.25
+        assert 2.0 * 0.75 <= c._delay(3, None) <= 2.0
+        assert c._delay(10, None) == 10.0  # capped
+        assert 1.0 <= c._delay(0, 1.0) <= 1.25  # Retry-After is a floor
+        assert 4.0 <= c._delay(0, 4.0) <= 5.0
+        assert c._delay(0, 60.0) == 10.0  # even Retry-After is capped at max_backoff

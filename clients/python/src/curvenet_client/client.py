@@ -7,10 +7,9 @@ same file), so the client retries whatever did not get a definite answer:
 
 - connection failures (refused, reset, closed before the answer) and the
   statuses 429, 502, 503 and 504, up to ``retries`` times per request, waiting
-  ``backoff * 2**attempt`` seconds (at most ``max_backoff``), or the answer's
-  ``Retry-After`` when that is longer (also capped at ``max_backoff``), each
-  wait shortened by up to a quarter at random so that many clients do not
-  retry in step;
+  ``backoff * 2**attempt`` seconds less up to a quarter at random, or the
+  answer's ``Retry-After`` plus up to a quarter when that is longer, never
+  more than ``max_backoff`` (the jitter keeps many clients from retrying in step);
 - a kept-alive connection found closed when reused (the server restarted,
   or closed it idle): once more at once on a new connection, not counted as
   a retry;
@@ -252,11 +251,14 @@ class Client:
         return _Answer(resp.status, headers, data)
 
     def _delay(self, attempt: int, retry_after: float | None) -> float:
-        delay = self.backoff * 2.0**attempt
+        """Seconds before retry ``attempt + 1``: ``backoff * 2**attempt`` less
+        up to a quarter, at least ``Retry-After`` plus up to a quarter (so
+        that clients told the same delay do not return in step), at most
+        ``max_backoff``."""
+        delay = self.backoff * 2.0**attempt * (1.0 - 0.25 * random.random())
         if retry_after is not None:
-            delay = max(delay, retry_after)
-        delay = min(delay, self.max_backoff)
-        return delay * (1.0 - 0.25 * random.random())
+            delay = max(delay, retry_after * (1.0 + 0.25 * random.random()))
+        return min(delay, self.max_backoff)
 
     def _request(
         self,
