@@ -35,7 +35,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+try:
+    from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+except ImportError as e:  # pragma: no cover - depends on the installation
+    raise ImportError(
+        f"curvenet_client.usd needs usd-core: pip install 'curvenet-client[usd]' ({e})"
+    ) from e
 
 from .frames import Frame
 from .request import DEFAULT_SAMPLE_DENSITY, BindingRequest, BlendShape, CurvenetSpec, Inbetween
