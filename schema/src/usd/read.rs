@@ -203,7 +203,13 @@ impl Stage {
         }
         let projection_points = match self.static_value(&prim, PROJECTION)? {
             Some(v) => {
-                let p = self.points_value(&prim, PROJECTION, &v)?;
+                let mut p = self.points_value(&prim, PROJECTION, &v)?;
+                // An indexed primvar is flattened: entry i is values[indices[i]].
+                let indices_name = format!("{PROJECTION}:indices");
+                if let Some(ix) = self.static_value(&prim, &indices_name)? {
+                    let ix = self.index_array(&prim, &indices_name, &ix, p.len())?;
+                    p = ix.iter().map(|&i| p[i as usize]).collect();
+                }
                 if p.len() != n {
                     return Err(UsdError::contract(
                         path,
