@@ -96,6 +96,18 @@ def test_usd_core_output_has_the_bakes_content(server, tmp_path, ext: str) -> No
     assert all(np.array_equal(g[t], w[t]) for t in w)
     # Recorded, not wished for: usd-core and the Rust writer format differently.
     assert out.read_bytes() != expected.read_bytes()
+    # `curvenet stitch` takes the usd-core layer in either format (a .usdc
+    # written by usd-core leaves the prims' `over` specifier to Sdf's
+    # fallback) and gives back the bake's bytes.
+    stitched = tmp_path / f"stitched.{ext}"
+    r = subprocess.run(
+        [str(curvenet_binary()), "stitch", str(out), "--out", str(stitched), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert r.returncode == 0, r.stderr
+    assert stitched.read_bytes() == expected.read_bytes()
 
 
 def test_exit_statuses(server, tmp_path) -> None:

@@ -344,11 +344,11 @@ fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Resul
             Some(sdf::SpecType::Prim) => {
                 only_fields(&spec, &[sdf::FieldKey::Specifier.as_str(), children_key, properties_key])?;
                 match field(&spec, sdf::FieldKey::Specifier.as_str())? {
-                    Some(Value::Specifier(sdf::Specifier::Over)) => {}
+                    // Absent is Sdf's fallback, `over`: usd-core's crate writer omits it.
+                    Some(Value::Specifier(sdf::Specifier::Over)) | None => {}
                     Some(v) => {
                         return Err(not_a_bake(&spec, format!("specifier {v:?}: a bake holds over opinions only")));
                     }
-                    None => return Err(not_a_bake(&spec, "no specifier: a bake holds over opinions only".into())),
                 }
             }
             Some(sdf::SpecType::Attribute) if spec.split_property().is_some_and(|(_, name)| name == POINTS) => {

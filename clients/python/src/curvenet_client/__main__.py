@@ -180,8 +180,9 @@ def bake_remote(args: argparse.Namespace) -> int:
             usd.write_bake_layer(out, baked, doc=doc, time_range=time_range)  # type: ignore[arg-type]
         else:
             with tempfile.TemporaryDirectory(prefix=".curvenet-client-", dir=out.parent) as tmp:
-                # Text: `curvenet stitch` (openusd) finds no specifier on the
-                # prims of a .usdc written by usd-core 26.11, and refuses it.
+                # A text intermediate: curvenet releases before the stitch
+                # took usd-core's .usdc (prims whose `over` specifier is left
+                # to Sdf's fallback) refused it.
                 layer = Path(tmp) / "remote.usda"
                 usd.write_bake_layer(layer, baked, doc=doc, time_range=time_range)  # type: ignore[arg-type]
                 r = subprocess.run(
