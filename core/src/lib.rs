@@ -13,6 +13,7 @@
 
 pub mod binding;
 pub mod blend_shapes;
+pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
@@ -24,6 +25,7 @@ pub mod solve;
 pub mod sparse;
 
 pub use binding::{BindOptions, BindWarning, Binding};
+pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use error::{Error, Result};

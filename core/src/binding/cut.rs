@@ -53,6 +53,8 @@ pub struct CutInput<'a> {
     pub segments: &'a [[u32; 2]],
     /// The spline of each sample, to name it in errors.
     pub sample_spline: &'a [u32],
+    /// Checked per sample, segment and face ([`Error::Cancelled`]).
+    pub cancel: &'a crate::Cancel,
 }
 
 /// Options of the cutter.
@@ -139,6 +141,7 @@ impl CutMesh {
         // 1. Samples.
         let mut sample_vertex = Vec::with_capacity(input.samples.len());
         for (i, q) in input.samples.iter().enumerate() {
+            input.cancel.check_every(i, "cutting")?;
             let hit = surface.bvh.closest_point(*q)?;
             let limit = options.max_projection_distance * surface.diagonal;
             if hit.distance > limit {
@@ -165,6 +168,7 @@ impl CutMesh {
         let mut pieces = Vec::new();
         let mut path = Path::default();
         for (s, &[i, j]) in input.segments.iter().enumerate() {
+            input.cancel.check_every(s, "cutting")?;
             let (ca, cb) = (sample_vertex[i as usize], sample_vertex[j as usize]);
             if ca == cb {
                 continue; // both samples project to one point: nothing to insert
@@ -352,7 +356,8 @@ impl<'s> Registry<'s> {
         // Split pieces into chords (per face) and pieces along edges (per canonical edge).
         let mut chords: HashMap<u32, Vec<Piece>> = HashMap::default();
         let mut along: HashMap<(u32, u32), u32> = HashMap::default(); // (cv, cv) on an edge -> segment, directed a->b
-        for p in &pieces {
+        for (k, p) in pieces.iter().enumerate() {
+            input.cancel.check_every(k, "cutting")?;
             if let Some(c) = self.common_edge(p.face, p.a, p.b) {
                 // Every sub-piece of the edge between a and b runs along the segment.
                 let t_of = |v: u32| -> f64 {
@@ -390,6 +395,7 @@ impl<'s> Registry<'s> {
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
         for f in 0..surface.mesh.n_faces() as u32 {
+            input.cancel.check_every(f as usize, "cutting")?;
             // Fast path: a face no segment touches is its own single cut-face.
             let untouched = !chords.contains_key(&f)
                 && he.face_halfedges(f).all(|h| !self.on_edge.contains_key(&surface.canonical(h)));
