@@ -19,6 +19,7 @@ pub mod closest_point;
 pub mod curvenet;
 pub mod error;
 pub mod halfedge;
+pub mod heap;
 pub mod mesh;
 pub mod polygon_laplacian;
 pub mod solve;
