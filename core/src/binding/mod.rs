@@ -412,7 +412,7 @@ impl Binding {
         let mut corners = Vec::new();
         let mut degenerate = 0usize;
         for f in 0..cut.n_faces() as u32 {
-            cancel.check_every(f as usize, "assembly")?;
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             corners.clear();
             corners.extend(hs.clone().map(|h| cut.vertex(cut.tail(h)).pos));
@@ -499,7 +499,7 @@ impl Binding {
             .collect();
         let mut corner_r = vec![DVec3::ZERO; cut.n_halfedges()];
         for f in 0..cut.n_faces() as u32 {
-            cancel.check_every(f as usize, "assembly")?;
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             let n = hs.len();
             let lf = &face_laplacian

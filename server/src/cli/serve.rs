@@ -176,6 +176,9 @@ pub fn run(args: &Args) -> CliResult {
         .build()
         .map_err(|e| CliError::Io { context: "starting the runtime".into(), source: e })?;
     let drained = runtime.block_on(async {
+        // Listen for the signals before announcing the address: a SIGTERM
+        // right after startup must stop the server, not kill the process.
+        let shutdown = shutdown_signal().map_err(|e| CliError::Io { context: "installing signal handlers".into(), source: e })?;
         let listener = tokio::net::TcpListener::bind(&args.addr)
             .await
             .map_err(|e| CliError::Io { context: format!("binding {}", args.addr), source: e })?;
@@ -187,7 +190,7 @@ pub fn run(args: &Args) -> CliResult {
         use std::io::Write as _;
         let _ = std::io::stdout().flush();
         tracing::info!(%addr, auth = state.config().token.is_some(), cache_bytes = state.config().cache_bytes, "curvenet serve");
-        curvenet_server::run(listener, state, shutdown_signal())
+        curvenet_server::run(listener, state, shutdown)
             .await
             .map_err(|e| CliError::Io { context: format!("serving on {addr}"), source: e })
     })?;
@@ -209,25 +212,26 @@ pub fn run(args: &Args) -> CliResult {
     }
 }
 
-/// Resolves on SIGINT (Ctrl-C) or SIGTERM (docker stop, Kubernetes).
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
+/// A future resolving on SIGINT (Ctrl-C) or SIGTERM (docker stop,
+/// Kubernetes); the handlers are installed when this is called.
+fn shutdown_signal() -> std::io::Result<impl std::future::Future<Output = ()> + Send + 'static> {
     #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        let mut term = signal(SignalKind::terminate())?;
+        let mut int = signal(SignalKind::interrupt())?;
+        Ok(async move {
+            tokio::select! {
+                _ = term.recv() => {},
+                _ = int.recv() => {},
             }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
+        })
+    }
     #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {},
-        _ = term => {},
+    {
+        Ok(async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
     }
 }
 

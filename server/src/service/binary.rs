@@ -4,6 +4,7 @@
 
 use curvenet_schema::wire::{BinaryArray, BinaryFrameHeader, BinaryResponseHeader};
 
+use crate::bounded::BatchError;
 use crate::error::{Code, ServiceError};
 use crate::frames::{Frame, Solved};
 
@@ -13,8 +14,8 @@ fn malformed(message: impl Into<String>) -> ServiceError {
     ServiceError::new(Code::MalformedBinary, message)
 }
 
-/// Splits a binary body into its JSON header and the data after it.
-fn split(body: &[u8]) -> Result<(serde_json::Value, &[u8]), ServiceError> {
+/// Splits a binary body into its JSON header (bytes) and the data after it.
+fn split(body: &[u8]) -> Result<(&[u8], &[u8]), ServiceError> {
     if body.len() < 4 {
         return Err(malformed(format!(
             "the body has {} bytes; it must start with a u32 little-endian header length",
@@ -25,9 +26,7 @@ fn split(body: &[u8]) -> Result<(serde_json::Value, &[u8]), ServiceError> {
     if body.len() - 4 < h {
         return Err(malformed(format!("the header length is {h} bytes but only {} bytes follow it", body.len() - 4)));
     }
-    let header =
-        serde_json::from_slice(&body[4..4 + h]).map_err(|e| malformed(format!("the header is not JSON: {e}")))?;
-    Ok((header, &body[4 + h..]))
+    Ok((&body[4..4 + h], &body[4 + h..]))
 }
 
 /// What a binding expects of a frame's arrays. Every array a header lists
@@ -39,6 +38,8 @@ pub struct Expected<'a> {
     pub pools: &'a [usize],
     pub vertices: usize,
     pub blend_shapes: usize,
+    /// Most frames a batch may hold (see `bounded`).
+    pub max_frames: usize,
 }
 
 /// Parses a binary frame request: one frame, or `{"frames": [...]}` (then
@@ -48,16 +49,21 @@ pub struct Expected<'a> {
 /// a `posed` array is not articulated.
 pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool), ServiceError> {
     let (header, mut data) = split(body)?;
-    let batch = header.get("frames").is_some();
-    let headers: Vec<BinaryFrameHeader> = if batch {
-        #[derive(serde::Deserialize)]
-        #[serde(deny_unknown_fields)]
-        struct Batch {
-            frames: Vec<BinaryFrameHeader>,
+    // Typed straight from the bytes (a generic JSON value costs tens of bytes
+    // per byte of header), a batch's frames counted as they come.
+    let (headers, batch): (Vec<BinaryFrameHeader>, bool) = match crate::bounded::frames(header, expected.max_frames) {
+        Ok(h) => (h, true),
+        Err(BatchError::NotBatch) => {
+            (vec![serde_json::from_slice(header).map_err(|e| malformed(format!("the header: {e}")))?], false)
         }
-        serde_json::from_value::<Batch>(header).map_err(|e| malformed(format!("the batch header: {e}")))?.frames
-    } else {
-        vec![serde_json::from_value(header).map_err(|e| malformed(format!("the header: {e}")))?]
+        Err(BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, expected.vertices)),
+        Err(BatchError::Malformed(e)) => {
+            // A single frame's header is not an object starting with "frames".
+            match serde_json::from_slice::<BinaryFrameHeader>(header) {
+                Ok(h) => (vec![h], false),
+                Err(_) => return Err(malformed(format!("the header: {e}"))),
+            }
+        }
     };
     // Plan every array of every frame first: (frame, array, rows, width).
     let mut plans: Vec<Vec<Planned>> = Vec::with_capacity(headers.len());

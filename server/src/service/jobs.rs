@@ -41,12 +41,16 @@ impl Reason {
 struct Shared {
     cancel: Cancel,
     reason: AtomicU8,
+    /// Jobs cancelled so far (the registry's count).
+    cancelled: Arc<AtomicU64>,
 }
 
 impl Shared {
-    /// Raises the flag; the first reason given wins.
+    /// Raises the flag; the first reason given wins (and is counted).
     fn cancel(&self, reason: Reason) {
-        let _ = self.reason.compare_exchange(0, reason as u8, Ordering::SeqCst, Ordering::SeqCst);
+        if self.reason.compare_exchange(0, reason as u8, Ordering::SeqCst, Ordering::SeqCst).is_ok() {
+            self.cancelled.fetch_add(1, Ordering::Relaxed);
+        }
         self.cancel.cancel();
     }
 }
@@ -56,6 +60,7 @@ impl Shared {
 pub struct Jobs {
     next: AtomicU64,
     running: Mutex<HashMap<u64, Arc<Shared>>>,
+    cancelled: Arc<AtomicU64>,
 }
 
 impl Jobs {
@@ -64,7 +69,8 @@ impl Jobs {
     /// leaves the registry.
     pub fn start(self: &Arc<Self>) -> Job {
         let id = self.next.fetch_add(1, Ordering::Relaxed);
-        let shared = Arc::new(Shared { cancel: Cancel::new(), reason: AtomicU8::new(0) });
+        let shared =
+            Arc::new(Shared { cancel: Cancel::new(), reason: AtomicU8::new(0), cancelled: self.cancelled.clone() });
         self.running.lock().unwrap_or_else(|e| e.into_inner()).insert(id, shared.clone());
         Job { id, shared, jobs: self.clone(), finished: false }
     }
@@ -76,6 +82,11 @@ impl Jobs {
             job.cancel(reason);
         }
         running.len()
+    }
+
+    /// Jobs cancelled since the start, whatever the reason.
+    pub fn cancelled(&self) -> u64 {
+        self.cancelled.load(Ordering::Relaxed)
     }
 
     /// Jobs running now.
@@ -147,6 +158,7 @@ mod tests {
         drop(a);
         assert!(flag.is_cancelled());
         assert_eq!(jobs.len(), 0);
+        assert_eq!(jobs.cancelled(), 1);
         let b = jobs.start();
         let flag = b.cancel_flag();
         assert_eq!(b.finish(), Reason::None);
@@ -164,5 +176,6 @@ mod tests {
         assert_eq!(a.reason(), Reason::TimeLimit);
         assert_eq!(b.reason(), Reason::Shutdown);
         assert!(b.cancel_flag().is_cancelled());
+        assert_eq!(jobs.cancelled(), 2);
     }
 }

@@ -21,6 +21,7 @@
 mod bake;
 mod binary;
 mod binding;
+mod bounded;
 mod cache;
 mod error;
 mod frames;

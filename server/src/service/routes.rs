@@ -330,10 +330,7 @@ pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<E
             };
             let reason = job.finish();
             let entry = match result {
-                Err(e) if e.cancelled => {
-                    st.inner.metrics.bindings_cancelled.increment(1);
-                    return Err(cancelled(reason, &limits, t.elapsed()));
-                }
+                Err(e) if e.cancelled => return Err(cancelled(reason, &limits, t.elapsed())),
                 other => other?,
             };
             st.inner.metrics.bind_seconds.record(t.elapsed().as_secs_f64());
@@ -402,6 +399,7 @@ pub(crate) async fn metrics(State(state): State<AppState>) -> Response {
     inner.cache.refresh_gauges().await;
     inner.metrics.solves_in_flight.set(state.solves_in_flight() as f64);
     inner.metrics.bindings_running.set(inner.jobs.len() as f64);
+    inner.metrics.bindings_cancelled.absolute(inner.jobs.cancelled());
     ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render())
         .into_response()
 }
@@ -545,7 +543,7 @@ async fn solve_frames(
     let (out, n, solve_ms) = state
         .on_pool(move || {
             let _permits = (permit, spare);
-            let frames = parse_frames(&entry, form, &bytes, batch)?;
+            let frames = parse_frames(&entry, form, &bytes, batch, max_batch_bytes)?;
             let solved: Vec<Solved> = if batch {
                 check_batch_size(&entry, &frames, max_batch_bytes)?;
                 let chunk = frames.len().div_ceil(parallel).max(1);
@@ -610,15 +608,34 @@ fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64) -> Result<(), Ser
 }
 
 /// Parses and validates the frames of a request (on the solve pool).
-fn parse_frames(entry: &Entry, form: Form, bytes: &[u8], batch: bool) -> Result<Vec<Frame>, ServiceError> {
+fn parse_frames(
+    entry: &Entry,
+    form: Form,
+    bytes: &[u8],
+    batch: bool,
+    max_batch_bytes: u64,
+) -> Result<Vec<Frame>, ServiceError> {
+    let vertices = entry.binding.n_vertices();
+    let max_frames = crate::bounded::max_frames(max_batch_bytes, vertices);
     let frames: Vec<Frame> = match form {
-        Form::Json if batch => parse_json::<FrameBatchRequest>(bytes)?.frames.into_iter().map(Frame::from).collect(),
+        Form::Json if batch => match crate::bounded::frames::<FrameRequest>(bytes, max_frames) {
+            Ok(f) => f.into_iter().map(Frame::from).collect(),
+            Err(crate::bounded::BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, vertices)),
+            Err(crate::bounded::BatchError::Malformed(e)) => {
+                return Err(ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")));
+            }
+            Err(crate::bounded::BatchError::NotBatch) => {
+                return Err(ServiceError::new(
+                    Code::MalformedJson,
+                    "the JSON body is invalid: frames:batch takes {\"frames\": [...]} and nothing else",
+                ));
+            }
+        },
         Form::Json => vec![parse_json::<FrameRequest>(bytes)?.into()],
         Form::Binary => {
             let pools: Vec<usize> =
                 (0..entry.binding.n_curvenets()).map(|k| entry.binding.n_control_points(k)).collect();
-            let expected =
-                binary::Expected { pools: &pools, vertices: entry.binding.n_vertices(), blend_shapes: entry.n_shapes };
+            let expected = binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes, max_frames };
             let (frames, is_batch) = binary::parse(bytes, &expected)?;
             if is_batch != batch {
                 return Err(ServiceError::new(
