@@ -25,6 +25,8 @@ mod bounded;
 mod cache;
 mod error;
 mod frames;
+#[cfg(test)]
+mod fuzz_tests;
 mod jobs;
 mod limits;
 mod metrics;
