@@ -45,6 +45,6 @@ impl Cancel {
     /// [`Self::check`] on every [`CHECK_EVERY`]-th iteration `i` of a loop.
     #[inline]
     pub fn check_every(&self, i: usize, stage: &'static str) -> Result<()> {
-        if i % CHECK_EVERY == 0 { self.check(stage) } else { Ok(()) }
+        if i.is_multiple_of(CHECK_EVERY) { self.check(stage) } else { Ok(()) }
     }
 }

@@ -247,14 +247,14 @@ proptest! {
         for m in &mutations {
             mutate(&mut req, m);
         }
-        if scale != 1.0 {
-            if let Some(p) = req.pointer_mut("/curvenets/0/pool").and_then(Value::as_array_mut) {
-                for q in p {
-                    if let Some(q) = q.as_array_mut() {
-                        for x in q {
-                            if let Some(f) = x.as_f64() {
-                                *x = json!(f * scale);
-                            }
+        if scale != 1.0
+            && let Some(p) = req.pointer_mut("/curvenets/0/pool").and_then(Value::as_array_mut)
+        {
+            for q in p {
+                if let Some(q) = q.as_array_mut() {
+                    for x in q {
+                        if let Some(f) = x.as_f64() {
+                            *x = json!(f * scale);
                         }
                     }
                 }
