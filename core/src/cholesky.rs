@@ -231,6 +231,29 @@ fn to_faer(a: &SymmetricTriplets) -> Result<SparseColMat<u32, f64>> {
         .map_err(|e| Error::Internal { what: format!("assembling a sparse matrix failed: {e:?}") })
 }
 
+impl Cholesky {
+    /// Heap bytes held: the permutation, the factor's CSC arrays and faer's
+    /// symbolic analysis (its permutation and index arrays, by length),
+    /// shared with refactored copies (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        let idx = std::mem::size_of::<u32>();
+        let perm = self.symbolic.perm().map_or(0, |p| 2 * p.arrays().0.len() * idx);
+        let raw = match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => (s.col_ptr().len() + s.row_idx().len()) * idx,
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                (s.supernode_begin().len()
+                    + s.supernode_end().len()
+                    + s.col_ptr_for_row_idx().len()
+                    + s.col_ptr_for_val().len()
+                    + s.row_idx().len())
+                    * idx
+            }
+        };
+        bytes(&self.perm) + bytes(&self.col_ptr) + bytes(&self.row_idx) + bytes(&self.values) + perm + raw
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

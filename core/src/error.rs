@@ -126,6 +126,9 @@ pub enum Error {
     /// A numeric parameter or option is out of its valid range.
     #[error("{what} must be finite and positive, got {value}")]
     InvalidParameter { what: &'static str, value: f64 },
+    /// The caller cancelled the computation ([`crate::Cancel`]) during `stage`.
+    #[error("cancelled during {stage}")]
+    Cancelled { stage: &'static str },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -13,18 +13,21 @@
 
 pub mod binding;
 pub mod blend_shapes;
+pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
 pub mod deformer;
 pub mod error;
 pub mod halfedge;
+pub mod heap;
 pub mod mesh;
 pub mod polygon_laplacian;
 pub mod solve;
 pub mod sparse;
 
 pub use binding::{BindOptions, BindWarning, Binding};
+pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use deformer::{BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};

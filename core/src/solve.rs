@@ -337,3 +337,27 @@ fn flat(m: &Mat3) -> [f64; 9] {
 fn unflat(f: &[f64; 9]) -> DMat3 {
     DMat3::from_cols_array(f).transpose()
 }
+
+impl Workspace {
+    /// Heap bytes held by the workspace's buffers (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        nested_bytes(&self.samples)
+            + nested_bytes(&self.frames)
+            + nested_bytes(&self.gradients)
+            + bytes(&self.slot_f)
+            + bytes(&self.fc)
+            + bytes(&self.xc)
+            + bytes(&self.rhs9)
+            + bytes(&self.work9)
+            + bytes(&self.rhs3)
+            + bytes(&self.work3)
+            + nested_bytes(&self.tracked)
+            + nested_bytes(&self.rest_samples)
+            + nested_bytes(&self.rest_frames)
+            + bytes(&self.rest_cut)
+            + bytes(&self.rest_corner_r)
+            + bytes(&self.rest_sample_offset)
+            + bytes(&self.rest_crossing_offset)
+    }
+}

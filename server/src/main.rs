@@ -38,6 +38,16 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Not for the service (nor `inspect --serve`): hyper writes responses
+    // with writev, which would raise SIGPIPE on a reset connection.
+    let serves = match &cli.command {
+        Command::Serve(_) => true,
+        Command::Inspect(a) => a.serve.is_some(),
+        _ => false,
+    };
+    if !serves {
+        exit_quietly_on_closed_pipe();
+    }
     let result = match cli.command {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
@@ -51,5 +61,18 @@ fn main() -> ExitCode {
             eprintln!("curvenet: error: {e:#}");
             ExitCode::from(e.exit_code())
         }
+    }
+}
+
+/// `curvenet inspect STAGE | head -5`: when the reader of stdout goes away,
+/// exit quietly as command-line tools do (the default SIGPIPE action), not
+/// with a panic from `println!`. Rust ignores SIGPIPE by default so that a
+/// write to a closed socket returns an error; the service keeps that, the
+/// other commands only write to files and the terminal.
+fn exit_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restoring a signal's default disposition, at startup, before any thread is spawned.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

@@ -56,6 +56,8 @@ pub struct CutInput<'a> {
     pub sample_ref: &'a [SampleRef],
     /// Each segment as users number it (curvenet, spline, segment within the spline).
     pub segment_ref: &'a [SegmentRef],
+    /// Checked per sample, segment and face ([`Error::Cancelled`]).
+    pub cancel: &'a crate::Cancel,
 }
 
 impl CutInput<'_> {
@@ -186,6 +188,7 @@ impl CutMesh {
         let limit = options.max_projection_distance * surface.diagonal;
         let mut sample_loc = Vec::with_capacity(input.samples.len());
         for (i, q) in input.samples.iter().enumerate() {
+            input.cancel.check_every(i, "cutting")?;
             let hit = surface.bvh.closest_point(*q)?;
             if hit.distance > limit {
                 let at = input.sample_ref.get(i).copied().unwrap_or(SampleRef {
@@ -243,6 +246,7 @@ impl CutMesh {
         let mut path = Path::default();
         let mut pos: Vec<DVec3> = Vec::new();
         for (s, &[i, j]) in input.segments.iter().enumerate() {
+            input.cancel.check_every(s, "cutting")?;
             if !segment_embedded[s] {
                 continue;
             }
@@ -458,7 +462,8 @@ impl<'s> Registry<'s> {
         // Split pieces into chords (per face) and pieces along edges (per canonical edge).
         let mut chords: HashMap<u32, Vec<Piece>> = HashMap::default();
         let mut along: HashMap<(u32, u32), u32> = HashMap::default(); // (cv, cv) on an edge -> segment, directed a->b
-        for p in &pieces {
+        for (k, p) in pieces.iter().enumerate() {
+            input.cancel.check_every(k, "cutting")?;
             if let Some(c) = self.common_edge(p.face, p.a, p.b) {
                 // Every sub-piece of the edge between a and b runs along the segment.
                 let t_of = |v: u32| -> f64 {
@@ -496,6 +501,7 @@ impl<'s> Registry<'s> {
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
         for f in 0..surface.mesh.n_faces() as u32 {
+            input.cancel.check("cutting")?; // per face: a face's graph costs up to its pieces squared
             // Fast path: a face no segment touches is its own single cut-face.
             let untouched = !chords.contains_key(&f)
                 && he.face_halfedges(f).all(|h| !self.on_edge.contains_key(&surface.canonical(h)));

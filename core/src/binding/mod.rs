@@ -40,6 +40,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::cancel::Cancel;
 use crate::cholesky::{Cholesky, SymmetricTriplets};
 use crate::curvenet::{CurvenetLayout, Side};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
@@ -53,7 +54,7 @@ pub use cut::{
 pub use surface::Surface;
 
 /// Options of [`Binding::new`].
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct BindOptions {
     pub cut: CutOptions,
@@ -63,17 +64,28 @@ pub struct BindOptions {
     /// curvenet touches (its vertices pass through), and segments whose
     /// surface path is a detour ([`BindWarning::SegmentDetour`]).
     pub strict: bool,
+    /// Checked between the binding's stages and inside its long loops
+    /// (cutting per segment and per face, assembly per face); raised, the
+    /// binding returns [`Error::Cancelled`]. The factorisation itself is one
+    /// uninterruptible call, checked before and after.
+    pub cancel: Cancel,
 }
 
 impl Default for BindOptions {
     fn default() -> Self {
-        Self { cut: CutOptions::default(), lambda: DEFAULT_LAMBDA, strict: false }
+        Self { cut: CutOptions::default(), lambda: DEFAULT_LAMBDA, strict: false, cancel: Cancel::default() }
     }
 }
 
 impl BindOptions {
     pub fn with_strict(mut self, strict: bool) -> Self {
         self.strict = strict;
+        self
+    }
+
+    /// Sets the cancellation flag the binding checks.
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
         self
     }
 }
@@ -285,6 +297,7 @@ impl Binding {
         options: &BindOptions,
     ) -> Result<Self> {
         let t0 = Instant::now();
+        options.cancel.check("the surface")?;
         let surface = Surface::new(mesh, projection_points)?;
         let t1 = Instant::now();
         Self::with_surface(surface, curvenets, options, ms(t0, t1))
@@ -300,6 +313,8 @@ impl Binding {
         if curvenets.is_empty() {
             return Err(Error::Empty { what: "the list of curvenets to bind" });
         }
+        let cancel = &options.cancel;
+        cancel.check("cutting")?;
         let t1 = Instant::now();
         // Concatenate the curvenets.
         let mut samples = Vec::new();
@@ -340,7 +355,13 @@ impl Binding {
         }
         let cut = CutMesh::new(
             &surface,
-            CutInput { samples: &samples, segments: &segments, sample_ref: &sample_ref, segment_ref: &segment_ref },
+            CutInput {
+                samples: &samples,
+                segments: &segments,
+                sample_ref: &sample_ref,
+                segment_ref: &segment_ref,
+                cancel,
+            },
             &options.cut,
         )?;
         let mut warnings = Vec::new();
@@ -369,6 +390,7 @@ impl Binding {
         let mut crossing_row: HashMap<(u32, Side), u32> = HashMap::default();
         let mut vertex_is_curve = vec![false; n_vertices];
         for h in 0..cut.n_halfedges() as u32 {
+            cancel.check_every(h as usize, "assembly")?;
             let v = cut.tail(h);
             let cv = cut.vertex(v);
             if cv.mask & (SAMPLE | CROSSING) == 0 {
@@ -463,6 +485,7 @@ impl Binding {
         let mut corners = Vec::new();
         let mut degenerate = 0usize;
         for f in 0..cut.n_faces() as u32 {
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             corners.clear();
             corners.extend(hs.clone().map(|h| cut.vertex(cut.tail(h)).pos));
@@ -494,6 +517,7 @@ impl Binding {
             warnings.push(BindWarning::DegenerateCutFaces { count: degenerate });
         }
         let b = Csr::from_triplets(n_u, n_c, b_entries);
+        cancel.check("the factorisation")?;
         let t3 = Instant::now();
         let factor = if n_u == 0 {
             Cholesky::new(&SymmetricTriplets { n: 0, entries: Vec::new() })?
@@ -513,6 +537,7 @@ impl Binding {
             })?
         };
         let t4 = Instant::now();
+        cancel.check("the factorisation")?;
         let stats = BindStats {
             mesh_vertices: n_vertices,
             mesh_faces: surface.mesh.n_faces(),
@@ -556,6 +581,7 @@ impl Binding {
             .collect();
         let mut corner_r = vec![DVec3::ZERO; cut.n_halfedges()];
         for f in 0..cut.n_faces() as u32 {
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             let n = hs.len();
             let lf = &face_laplacian

@@ -197,3 +197,10 @@ pub(crate) fn intersection_fans(
     }
     Ok((fans, ends))
 }
+
+impl IntersectionFan {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        crate::heap::bytes(&self.emanations) + crate::heap::bytes(&self.corner_signs)
+    }
+}

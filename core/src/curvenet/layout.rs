@@ -176,3 +176,21 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
 pub fn scaled_frames(layout: &CurvenetLayout, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
     frames(layout.frame_plan(), samples)
 }
+
+impl CurvenetLayout {
+    /// Heap bytes held: topology, sampling plan, fans, constraint slots and
+    /// the neutral pool, samples and frames (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        self.topology.heap_bytes()
+            + self.sampling.heap_bytes()
+            + bytes(&self.fans)
+            + self.fans.iter().map(|f| f.heap_bytes()).sum::<usize>()
+            + bytes(&self.curve_ends)
+            + bytes(&self.curve_isolated)
+            + self.constraints.heap_bytes()
+            + bytes(&self.neutral_pool)
+            + bytes(&self.neutral_samples)
+            + bytes(&self.neutral_frames)
+    }
+}

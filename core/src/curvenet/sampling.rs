@@ -452,6 +452,23 @@ fn interior_parameters(p: &[DVec3; 4], n: u32, pieces: u32, mut emit: impl FnMut
     }
 }
 
+impl Sampling {
+    /// Heap bytes held by the plan (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.splines)
+            + bytes(&self.spline_segments)
+            + bytes(&self.spline_refinement)
+            + bytes(&self.spline_interior)
+            + bytes(&self.knot_points)
+            + bytes(&self.point_knot)
+            + bytes(&self.curve_sample_offsets)
+            + bytes(&self.curve_samples)
+            + bytes(&self.curve_segment_offsets)
+            + bytes(&self.segments)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

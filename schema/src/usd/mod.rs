@@ -14,6 +14,7 @@
 //! # Ok::<(), curvenet_schema::usd::UsdError>(())
 //! ```
 
+mod confine;
 mod error;
 mod read;
 mod value;

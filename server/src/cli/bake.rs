@@ -76,6 +76,11 @@ pub struct Args {
     /// No progress line and no summary.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Refuse (exit 2) a stage that opens any layer or asset (sublayers,
+    /// references, payloads, at any depth) outside these directories, symlinks
+    /// followed (repeatable). The service bakes with its --bake-root dirs.
+    #[arg(long = "confine", value_name = "DIR")]
+    pub confine: Vec<PathBuf>,
 }
 
 /// An inclusive range of integer time codes.
@@ -146,7 +151,16 @@ pub fn run(args: &Args) -> CliResult {
         |e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))),
     )?;
 
-    let stage = Stage::open(&args.input)?;
+    let stage = if args.confine.is_empty() {
+        Stage::open(&args.input)?
+    } else {
+        let roots = args
+            .confine
+            .iter()
+            .map(|r| std::fs::canonicalize(r).map_err(|e| CliError::Input(format!("--confine {}: {e}", r.display()))))
+            .collect::<CliResult<Vec<_>>>()?;
+        Stage::open_within(&args.input, &roots)?
+    };
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs)?;
 

@@ -21,6 +21,9 @@ pub enum CliError {
     /// An I/O failure (writing output): worth retrying.
     #[error("{context}: {source}")]
     Io { context: String, source: std::io::Error },
+    /// `serve` stopped at its drain deadline with work cut short (exit 1).
+    #[error("{0}")]
+    CutShort(String),
 }
 
 impl CliError {
@@ -28,6 +31,7 @@ impl CliError {
         match self {
             CliError::Usd(curvenet_schema::usd::UsdError::Open { message, .. }) if is_transient(message) => 75,
             CliError::Io { .. } => 75,
+            CliError::CutShort(_) => 1,
             _ => 2,
         }
     }
