@@ -14,6 +14,7 @@
 //! # Ok::<(), curvenet_schema::usd::UsdError>(())
 //! ```
 
+mod adjust;
 mod error;
 mod read;
 mod value;
@@ -23,5 +24,6 @@ pub use write::{
     encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
+pub use adjust::ADJUSTMENT_TYPE;
 pub use error::UsdError;
 pub use read::Stage;
