@@ -83,7 +83,7 @@ fn the_base_adjustment_reads_with_interpolated_values() {
         [("xformOp:translate", 2), ("xformOp:rotateXYZ", 0), ("xformOp:scale", 0), ("curvenet:tangentTranslates", 2)]
     );
     // Frame 2 lies halfway between the samples at 1 and 3: linear interpolation.
-    let at2 = stage.adjustments_at(&[list.clone()], Some(2.0)).unwrap();
+    let at2 = stage.adjustments_at(std::slice::from_ref(&list), Some(2.0)).unwrap();
     let want = Adjustment::new(0, 3)
         .with_attach_tangents(false)
         .with_translate([0.0, 0.1, -0.2])

@@ -10,6 +10,9 @@ use crate::binding::{Binding, KnotBinding, surface::Surface};
 use crate::curvenet::{CurvenetLayout, Mat3};
 use crate::error::{Error, Result};
 
+/// A curvenet's control-point pool and its samples.
+type PoolAndSamples = (Vec<[f64; 3]>, Vec<[f64; 3]>);
+
 /// No adjustment claims this knot (see [`Binding::check_adjustments_with`]).
 pub(crate) const UNCLAIMED: u32 = u32::MAX;
 
@@ -185,12 +188,7 @@ impl Binding {
     }
 
     /// The pool of curvenet `k` posed so far and its samples (allocating).
-    fn pose_so_far(
-        &self,
-        k: usize,
-        posed: Option<&[[f64; 3]]>,
-        rest: Option<&[[f64; 3]]>,
-    ) -> Result<(Vec<[f64; 3]>, Vec<[f64; 3]>)> {
+    fn pose_so_far(&self, k: usize, posed: Option<&[[f64; 3]]>, rest: Option<&[[f64; 3]]>) -> Result<PoolAndSamples> {
         let layout = &self.layouts[k];
         let pool = match (posed, rest) {
             (Some(pool), _) => pool.to_vec(),
