@@ -186,3 +186,38 @@ fn a_knot_between_two_intersections_blends_their_orientations_by_arc_length() {
     // Beyond A, towards the anchor, only A's orientation reaches.
     assert!(max_diff(&at([0.0, -2.0, 0.0]), &ry(alpha)) <= 1e-12);
 }
+
+#[test]
+fn a_knots_tangents_are_the_handles_next_to_it_that_are_not_knots() {
+    use curvenet_core::adjust::knot_tangents;
+    // The plan's table and the splines-only rule (the USD reader's) agree on
+    // every knot of the test nets.
+    for (name, net) in [("grid", grid(0.05)), ("star", star()), ("cylinder", cylinder_net())] {
+        let layout = layout_of_on(&net, name);
+        let plan = OrientationPlan::new(&layout, |_| [0.0, 0.0, 1.0]).unwrap();
+        let sampling = layout.sampling();
+        for k in 0..sampling.n_knots() {
+            let p = sampling.knot_point(k);
+            assert_eq!(plan.knot_tangents(k), knot_tangents(&net.splines, p), "{name} knot {p}");
+            // Every handle of a spline ending at the knot is listed (the test nets have no degenerate handles).
+            let valence = layout.topology().valence(p as usize) as usize;
+            assert_eq!(plan.knot_tangents(k).len(), valence, "{name} knot {p}");
+        }
+    }
+    // A handle on the knot itself and a handle that is another knot are not tangents.
+    let splines = [[0, 0, 1, 2], [2, 3, 4, 5], [5, 0, 6, 7]];
+    assert_eq!(knot_tangents(&splines, 0), Vec::<u32>::new());
+    assert_eq!(knot_tangents(&splines, 2), [1, 3]);
+    assert_eq!(knot_tangents(&splines, 5), [4], "handle 0 of the third spline is a knot");
+    assert_eq!(knot_tangents(&splines, 7), [6]);
+}
+
+/// `layout_of`, on a cylinder for the cylinder net.
+fn layout_of_on(net: &NetBuilder, name: &str) -> CurvenetLayout {
+    if name != "cylinder" {
+        return layout_of(net);
+    }
+    let (mesh, pts) = cylinder(1.0, -1.0, 4.0, 48, 30);
+    let c = Curvenet::new(&net.splines, &net.points).unwrap();
+    CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap()
+}
