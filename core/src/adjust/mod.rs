@@ -53,6 +53,19 @@
 //!   one hemisphere ([`blend_rotations`]) — the log-space mean for two
 //!   rotations: continuous, symmetric in its arguments, and exactly the
 //!   halfway rotation at equal distances.
+//! - **Known behaviour under shear.** Where the deformation is far from
+//!   rigid, an intersection's fit can be turned about a curve's tangent
+//!   relative to the curve itself (e.g. a finger ring's dorsal intersection
+//!   follows the finger line's tangent, which a curl turns more than the
+//!   ring). Parallel transport keeps that turn about the tangent, so around
+//!   a ring the knots opposite the intersection turn less than the surface
+//!   under them. On the skinned hand (tests/adjust.rs) neighbouring knots
+//!   differ by at most 23° more than the surface's local rotations; an
+//!   extreme analytic curl (100° over 0.4 of the hand's length) reached 75°.
+//!   Correcting the intersection's rotation directly to each knot's tangent
+//!   halves that but has a singularity where a curve turns half a turn
+//!   relative to its intersection, so the transport stays as the talk
+//!   describes it.
 //! - **Knots on curves that reach no intersection** (isolated closed
 //!   curves, curves between two anchors, the "floating" lip and eye curves
 //!   of the talk) use their own curve frame, anchored to the surface: at
