@@ -87,7 +87,14 @@ impl Bound {
         let refs: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
         let mut ws = self.binding.workspace();
         let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
-        self.binding.deform(&curvenet_core::FrameInput { posed: &refs, rest: None }, &mut ws, &mut out, None).unwrap();
+        self.binding
+            .deform(
+                &curvenet_core::FrameInput { posed: &refs, rest: None, ..Default::default() },
+                &mut ws,
+                &mut out,
+                None,
+            )
+            .unwrap();
         out
     }
 

@@ -107,6 +107,9 @@ pub struct Frame<'a> {
     /// One weight per blend shape; `None` (or all zero): no blend shapes.
     pub blend_shape_weights: Option<&'a [f64]>,
     pub blend_shape_mode: BlendShapeMode,
+    /// Curvenet Adjustments on top of whatever poses the curvenets
+    /// ([`crate::adjust`]); empty: none.
+    pub adjustments: &'a [crate::adjust::Adjustment],
 }
 
 /// Times of a deformer's construction, milliseconds.
@@ -243,15 +246,27 @@ impl Deformer {
             let after = weights.filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
             match (after, gradients) {
                 (Some(w), Some(g)) => {
-                    self.binding.deform(&FrameInput { posed, rest }, &mut s.ws, out, Some(&mut *g))?;
+                    self.binding.deform(
+                        &FrameInput { posed, rest, adjustments: frame.adjustments },
+                        &mut s.ws,
+                        out,
+                        Some(&mut *g),
+                    )?;
                     self.shapes.add_deformed(w, g, out)
                 }
                 (Some(w), None) => {
                     s.gradients.resize(n, [0.0; 9]);
-                    self.binding.deform(&FrameInput { posed, rest }, &mut s.ws, out, Some(&mut s.gradients))?;
+                    self.binding.deform(
+                        &FrameInput { posed, rest, adjustments: frame.adjustments },
+                        &mut s.ws,
+                        out,
+                        Some(&mut s.gradients),
+                    )?;
                     self.shapes.add_deformed(w, &s.gradients, out)
                 }
-                (None, g) => self.binding.deform(&FrameInput { posed, rest }, &mut s.ws, out, g),
+                (None, g) => {
+                    self.binding.deform(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, out, g)
+                }
             }
         })();
         self.give(s);

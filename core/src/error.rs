@@ -123,6 +123,31 @@ pub enum Error {
     /// The sampling would give a spline more segments than allowed.
     #[error("spline {spline} would get {segments} segments, more than the maximum {max}")]
     TooManySegments { spline: usize, segments: f64, max: u32 },
+    /// The tangents at an intersection are all parallel in some pose, so
+    /// the rotation fitting them (its knot orientation) is undetermined.
+    #[error(
+        "the tangents at the intersection at control point {point} are all parallel in this pose; \
+         its knot orientation is undetermined"
+    )]
+    UndeterminedKnotOrientation { point: u32 },
+    /// An adjustment names a control point that is not a knot (spline endpoint).
+    #[error(
+        "adjustment {adjustment}: control point {point} of curvenet {curvenet} is not a knot (a spline \
+         endpoint); only knots can be adjusted"
+    )]
+    NotAKnot { adjustment: usize, curvenet: usize, point: u32 },
+    /// An adjustment carries a value it cannot apply.
+    #[error("adjustment {adjustment} (knot {point} of curvenet {curvenet}): {problem}")]
+    InvalidAdjustment { adjustment: usize, curvenet: usize, point: u32, problem: &'static str },
+    /// An adjustment's tangent translates do not match its knot's tangents.
+    #[error(
+        "adjustment {adjustment} (knot {point} of curvenet {curvenet}) has {got} tangent translates; \
+         the knot has {expected} tangents (give one per tangent, or none)"
+    )]
+    TangentTranslateCount { adjustment: usize, curvenet: usize, point: u32, expected: usize, got: usize },
+    /// Two adjustments of the same knot.
+    #[error("adjustments {} and {} both adjust knot {point} of curvenet {curvenet}", adjustments[0], adjustments[1])]
+    DuplicateAdjustment { curvenet: usize, point: u32, adjustments: [usize; 2] },
     /// A numeric parameter or option is out of its valid range.
     #[error("{what} must be finite and positive, got {value}")]
     InvalidParameter { what: &'static str, value: f64 },

@@ -11,6 +11,7 @@
 //! - A curvenet is a pool of control points plus cubic Bézier splines, each a
 //!   `[u32; 4]` of indices into the pool.
 
+pub mod adjust;
 pub mod binding;
 pub mod blend_shapes;
 pub mod cancel;
@@ -26,6 +27,7 @@ pub mod polygon_laplacian;
 pub mod solve;
 pub mod sparse;
 
+pub use adjust::{Adjustment, Rotate};
 pub use binding::{BindOptions, BindWarning, Binding};
 pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};

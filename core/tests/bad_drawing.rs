@@ -33,7 +33,8 @@ fn bind(mesh: &PolyMesh, pts: &[[f64; 3]], net: &NetBuilder, strict: bool) -> Re
 fn neutral(b: &Binding, net: &NetBuilder) -> Vec<[f64; 3]> {
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     out
 }
 
@@ -104,7 +105,8 @@ fn a_segment_across_two_components_is_left_out_with_a_warning() {
     let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     assert!(max_error(&out, &shifted) <= 1e-9 * diag);
     assert!(matches!(bind(&mesh, &pts, &net, true), Err(Error::SegmentDetour { .. })));
@@ -262,7 +264,8 @@ fn a_cage_with_folded_faces_binds_with_them_split() {
     let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
     let e = max_error(&out, &moved);
     println!("fish cage: a rotation of the curvenet moves the cage {:.1e} of the diagonal off the rotation", e / diag);

@@ -269,7 +269,13 @@ fn quad_and_nonplanar_pentagon_meshes_bind_and_reproduce_rigid_motions() {
         let pool: Vec<[f64; 3]> = net.points.iter().map(m).collect();
         let mut ws = b.workspace();
         let mut out = vec![[0.0; 3]; b.n_vertices()];
-        b.deform(&curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, None).unwrap();
+        b.deform(
+            &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+            &mut ws,
+            &mut out,
+            None,
+        )
+        .unwrap();
         let err = out
             .iter()
             .zip(pts.iter())
@@ -309,7 +315,13 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     let pool: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1], p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(
+        &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+        &mut ws,
+        &mut out,
+        None,
+    )
+    .unwrap();
     assert_eq!(&out[base as usize..], &pts[base as usize..], "the eyeball passes through");
     assert!((out[0][0] - pts[0][0] - 0.1).abs() < 1e-9, "the hand moves with the curvenet");
     assert_eq!(
@@ -366,7 +378,12 @@ fn two_curvenets_bind_to_one_mesh() {
     let mut ws = binding.workspace();
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
     binding
-        .deform(&curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None }, &mut ws, &mut out, None)
+        .deform(
+            &curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None, ..Default::default() },
+            &mut ws,
+            &mut out,
+            None,
+        )
         .unwrap();
     let hit_a = bvh.closest_point([-0.05, 0.45, 0.0]).unwrap();
     let va = mesh.face(hit_a.face as usize)[0] as usize;

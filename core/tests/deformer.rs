@@ -57,22 +57,38 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
     let mut ws = b.workspace();
     for rest in [None, Some(rest.as_slice())] {
         for mode in [BlendShapeMode::After, BlendShapeMode::Before] {
-            let frame =
-                Frame { posed: &[Some(&posed)], rest, blend_shape_weights: Some(&weights), blend_shape_mode: mode };
+            let frame = Frame {
+                posed: &[Some(&posed)],
+                rest,
+                blend_shape_weights: Some(&weights),
+                blend_shape_mode: mode,
+                ..Default::default()
+            };
             let mut got = vec![[0.0; 3]; n];
             d.frame(&frame, &mut got, None).unwrap();
             let mut want = vec![[0.0; 3]; n];
             let mut g = vec![[0.0; 9]; n];
             match mode {
                 BlendShapeMode::After => {
-                    b.deform(&FrameInput { posed: &[Some(&posed)], rest }, &mut ws, &mut want, Some(&mut g)).unwrap();
+                    b.deform(
+                        &FrameInput { posed: &[Some(&posed)], rest, ..Default::default() },
+                        &mut ws,
+                        &mut want,
+                        Some(&mut g),
+                    )
+                    .unwrap();
                     bs.add_deformed(&weights, &g, &mut want).unwrap();
                 }
                 BlendShapeMode::Before => {
                     let mut sculpted = rest.unwrap_or(&pts).to_vec();
                     bs.add_to(&weights, &mut sculpted).unwrap();
-                    b.deform(&FrameInput { posed: &[Some(&posed)], rest: Some(&sculpted) }, &mut ws, &mut want, None)
-                        .unwrap();
+                    b.deform(
+                        &FrameInput { posed: &[Some(&posed)], rest: Some(&sculpted), ..Default::default() },
+                        &mut ws,
+                        &mut want,
+                        None,
+                    )
+                    .unwrap();
                 }
             }
             assert_eq!(got, want, "mode {mode:?}, rest {}", rest.is_some());

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"
@@ -24,6 +24,7 @@ MANIFEST = json.loads((FIXTURES / "manifest.json").read_text(encoding="utf-8"))
 STAGES = sorted(MANIFEST["stages"])
 SHOT = "shots/hand_wave/shot.usda"
 SKINNED = "shots/hand_skinned/shot.usda"
+ADJUSTED = "shots/hand_adjusted/shot.usda"
 HAND_STAGES = [f"hand/{n}" for n in
                ("hand_1k4.usda", "hand_closed.usda", "hand_lowres.usda", "hand_22k.usdc", "hand_94k.usdc")]
 
@@ -109,7 +110,7 @@ def expected_offsets(full, inbetweens, weight):
 
 def test_manifest_lists_every_composed_stage():
     assert MANIFEST["format"] == 1
-    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED] + HAND_STAGES)
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, ADJUSTED] + HAND_STAGES)
     for rel in STAGES:
         assert (FIXTURES / rel).is_file(), rel
 
@@ -477,6 +478,65 @@ def test_shot_curls_only_the_index_finger():
     assert [p.specifier for p in anim.rootPrims] == [Sdf.SpecifierOver]
     assert list(s.GetRootLayer().subLayerPaths) == ["./anim.usda", "../../hand/hand_1k4.usda"]
     assert s.GetFramesPerSecond() == 24
+
+
+@pytest.mark.parametrize("rel", STAGES)
+def test_adjustments(rel):
+    """CurvenetAdjustment prims (schema/README.md) as the manifest says: children of
+    their curvenet, a static knot that is a spline endpoint, the knot's tangents by the
+    contract's rule (recomputed here from the composed indices), one rotate at most,
+    and every value and time sample."""
+    s, want = stage(rel), MANIFEST["stages"][rel].get("adjustments", {})
+    found = sorted(str(p.GetPath()) for p in s.Traverse() if p.GetTypeName() == "CurvenetAdjustment")
+    assert found == sorted(want)
+    for path, w in want.items():
+        prim = s.GetPrimAtPath(path)
+        assert str(prim.GetParent().GetPath()) == w["curvenet"]
+        knot = prim.GetAttribute("curvenet:knot")
+        assert knot.GetVariability() == Sdf.VariabilityUniform and knot.GetNumTimeSamples() == 0
+        assert knot.Get() == w["knot"]
+        attach = prim.GetAttribute("curvenet:attachTangents")
+        assert (attach.Get() if attach and attach.HasAuthoredValue() else True) == w["attach_tangents"]
+        indices = np.asarray(pool_primvar(s.GetPrimAtPath(w["curvenet"])).GetIndices()).reshape(-1, 4)
+        val = valences(indices)
+        assert val[w["knot"]] == w["valence"]
+        tangents = sorted({int(h) for sp in indices for e, h in ((sp[0], sp[1]), (sp[3], sp[2]))
+                           if int(e) == w["knot"] and int(h) != int(e) and int(h) not in val})
+        assert tangents == w["tangents"], path
+        rotates = [n for n in ("xformOp:rotateXYZ", "xformOp:orient") if prim.GetAttribute(n).HasAuthoredValue()]
+        assert rotates == ([w["rotate"]] if w["rotate"] else [])
+        for name, samples in w["values"].items():
+            attr = prim.GetAttribute(name)
+            assert [float(t) for t in attr.GetTimeSamples()] == [t for t, _ in samples if t is not None], name
+            for t, value in samples:
+                got = attr.Get(Usd.TimeCode.Default() if t is None else t)
+                if isinstance(got, (Gf.Quatf, Gf.Quatd)):
+                    got = [got.GetReal(), *got.GetImaginary()]
+                got = np.asarray(got, dtype=np.float64).ravel()
+                assert np.array_equal(got, np.asarray(value, dtype=np.float64).ravel()), f"{path} {name} at {t}"
+
+
+def test_adjusted_shot_layers_adjustments_over_the_skinned_shot():
+    s = stage(ADJUSTED)
+    assert list(s.GetRootLayer().subLayerPaths) == ["./adjust.usda", "../hand_skinned/shot.usda"]
+    layer = Sdf.Layer.FindOrOpen(str(FIXTURES / "shots/hand_adjusted/adjust.usda"))
+    # only opinions on existing prims and the new adjustment prims
+    for path in ("/Hand", "/Hand/Curvenet"):
+        assert layer.GetPrimAtPath(path).specifier == Sdf.SpecifierOver
+    # the curvenet is not articulated: it tracks the skinned rest pose
+    assert pool_primvar(s.GetPrimAtPath("/Hand/Curvenet")).GetTimeSamples() == []
+    # at frame 1 every adjustment is the identity
+    for prim in s.GetPrimAtPath("/Hand/Curvenet").GetChildren():
+        orient = prim.GetAttribute("xformOp:orient")
+        if orient and orient.HasAuthoredValue():
+            assert orient.Get(1) == Gf.Quatf(1.0), prim.GetPath()
+        for name in ("xformOp:translate", "xformOp:rotateXYZ", "curvenet:tangentTranslates"):
+            attr = prim.GetAttribute(name)
+            if attr and attr.GetNumTimeSamples():
+                assert not np.asarray(attr.Get(1), dtype=np.float64).any(), f"{prim.GetPath()} {name}"
+        scale = prim.GetAttribute("xformOp:scale")
+        if scale and scale.HasAuthoredValue():
+            assert tuple(scale.Get(1)) == (1.0, 1.0, 1.0)
 
 
 # ----------------------------------------------------------------------------

@@ -279,6 +279,8 @@ pub struct Binding {
     /// Per curvenet, per pool point: where it sits over the projection-pose
     /// surface (for tracking the knots to a rest pose).
     pub(crate) knots: Vec<Vec<KnotBinding>>,
+    /// Per curvenet: the neutral part of its knot orientations (Curvenet Adjuster).
+    pub(crate) orientation_plans: Vec<crate::adjust::OrientationPlan>,
     pub(crate) warnings: Vec<BindWarning>,
     pub(crate) stats: BindStats,
     pub(crate) timings: BindTimings,
@@ -628,8 +630,10 @@ impl Binding {
             }
             knots.push(bound);
         }
+        let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {
             knots,
+            orientation_plans,
             layouts: curvenets.iter().map(|l| (*l).clone()).collect(),
             slot_sample,
             sample_projection,

@@ -268,6 +268,11 @@ impl Sampling {
         })
     }
 
+    /// The splines, `#S` quadruples of control-point indices.
+    pub fn splines(&self) -> &[[u32; 4]] {
+        &self.splines
+    }
+
     /// Number of control points `#P` of the pool this plan samples.
     pub fn n_points(&self) -> usize {
         self.n_points

@@ -14,6 +14,7 @@
 //! # Ok::<(), curvenet_schema::usd::UsdError>(())
 //! ```
 
+mod adjust;
 mod confine;
 mod error;
 mod read;
@@ -24,5 +25,6 @@ pub use write::{
     encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
+pub use adjust::ADJUSTMENT_TYPE;
 pub use error::UsdError;
 pub use read::Stage;

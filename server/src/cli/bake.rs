@@ -12,7 +12,10 @@
 //!    worker, every (frame, mesh) pair an independent task. Results keep
 //!    frame order; the first failing frame in time order is reported. Blend
 //!    shapes are added after the deformation, mapped by each vertex's
-//!    interpolated deformation gradient (paper §5).
+//!    interpolated deformation gradient (paper §5). Each curvenet's
+//!    `CurvenetAdjustment` children (Elemental's Curvenet Adjustments) are
+//!    read per frame and applied in the solve, on top of the posed pool or
+//!    knot tracking, in the knots' surface-relative frames.
 //! 3. The points (f32) are written as `over` opinions, atomically: a
 //!    temporary file beside OUTPUT, synced, renamed over it. A failed bake
 //!    leaves neither OUTPUT nor a temporary file.
@@ -24,9 +27,9 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{Binding, FrameInput, Workspace};
+use curvenet_core::{Adjustment, Binding, FrameInput, Workspace};
 use curvenet_schema::usd::{LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
-use curvenet_schema::{CurvenetData, MeshData};
+use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use rayon::prelude::*;
 
 use super::{CliError, CliResult, net_list};
@@ -44,6 +47,10 @@ time samples of every deformed mesh at its composed path (and over its
 ancestors), plus startTimeCode/endTimeCode of the baked frames. Sublayer it
 above (stronger than) INPUT. The file is replaced atomically: a failed bake
 leaves OUTPUT as it was and no temporary file. The same bake writes the same bytes.
+
+Curvenet Adjustments: the `CurvenetAdjustment` children of each curvenet
+(schema/README.md) are evaluated at every frame and move their knots, in the
+knots' surface-relative frames, on top of the posed or tracked curvenet.
 
 Frames: A-B is every integer time code from A to B inclusive (A alone: one
 frame). Without --frames: the stage's startTimeCode..endTimeCode, else the
@@ -123,6 +130,8 @@ struct MeshJob {
     /// The mesh's UsdSkel blend shapes, applied after the deformation in the
     /// per-vertex frames of the interpolated gradients (paper §5).
     shapes: BlendShapes,
+    /// The `CurvenetAdjustment` prims of each curvenet (binding order).
+    adjustments: Vec<Vec<AdjustmentData>>,
 }
 
 /// One mesh's input at one frame.
@@ -131,6 +140,8 @@ struct MeshFrame {
     rest: Option<Vec<[f64; 3]>>,
     /// Blend-shape weights (empty when the mesh has no blend shapes).
     weights: Vec<f64>,
+    /// The curvenets' adjustments at this frame (empty when there are none).
+    adjustments: Vec<Adjustment>,
 }
 
 /// One frame's inputs, one entry per mesh job.
@@ -163,10 +174,15 @@ pub fn run(args: &Args) -> CliResult {
     };
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs)?;
+    let adjustments = inputs
+        .iter()
+        .map(|(_, nets, _)| nets.iter().map(|n| stage.curvenet_adjustments(n)).collect::<Result<Vec<_>, _>>())
+        .collect::<Result<Vec<_>, _>>()?;
 
     let t_bind = Instant::now();
-    let jobs: Vec<MeshJob> =
-        pool.install(|| inputs.into_par_iter().map(|(m, n, r)| bind(m, n, r)).collect::<CliResult<_>>())?;
+    let jobs: Vec<MeshJob> = pool.install(|| {
+        inputs.into_par_iter().zip(adjustments).map(|((m, n, r), a)| bind(m, n, r, a)).collect::<CliResult<_>>()
+    })?;
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
         for w in job.binding.warnings() {
@@ -286,7 +302,12 @@ pub(super) fn frames(
     Ok(times)
 }
 
-fn bind(mesh: MeshData, nets: Vec<CurvenetData>, reads_rest: bool) -> CliResult<MeshJob> {
+fn bind(
+    mesh: MeshData,
+    nets: Vec<CurvenetData>,
+    reads_rest: bool,
+    adjustments: Vec<Vec<AdjustmentData>>,
+) -> CliResult<MeshJob> {
     let n = mesh.projection_points.len();
     let binding = super::bind_mesh(&mesh, &nets)?;
     let shapes = mesh
@@ -299,7 +320,7 @@ fn bind(mesh: MeshData, nets: Vec<CurvenetData>, reads_rest: bool) -> CliResult<
         })
         .collect::<CliResult<Vec<_>>>()?;
     let shapes = BlendShapes::new(n, shapes);
-    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes })
+    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes, adjustments })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame
@@ -332,7 +353,8 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                         true => Vec::new(),
                         false => stage.blend_shape_weights(&job.mesh, Some(t)).map_err(at)?,
                     };
-                    Ok(MeshFrame { posed, rest, weights })
+                    let adjustments = stage.adjustments_at(&job.adjustments, Some(t)).map_err(at)?;
+                    Ok(MeshFrame { posed, rest, weights, adjustments })
                 })
                 .collect::<CliResult<Vec<_>>>()?;
             Ok(FrameData { time: t, meshes })
@@ -388,7 +410,7 @@ fn solve(
     let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
     let n = job.binding.n_vertices();
     let mut out = vec![[0.0; 3]; n];
-    let frame = FrameInput { posed: &posed, rest: input.rest.as_deref() };
+    let frame = FrameInput { posed: &posed, rest: input.rest.as_deref(), adjustments: &input.adjustments };
     let context = || format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets));
     // Gradients only when a blend shape is on at this frame.
     let mut gradients = input.weights.iter().any(|&w| w != 0.0).then(|| vec![[0.0; 9]; n]);

@@ -7,7 +7,9 @@
 //! report lists the intersections, anchors and curves with their sampling, and
 //! warns about what is likely a mistake (curves shorter than a mesh edge,
 //! curves with a single segment, unused control points, samples far from the
-//! surface, non-finite posed pools). A curvenet whose analysis fails is
+//! surface, non-finite posed pools). Each curvenet's Curvenet Adjustments
+//! (`CurvenetAdjustment` children) are listed with their knot, tangents,
+//! animated attributes and values at `--time`. A curvenet whose analysis fails is
 //! reported with its error (naming the prim) and the others are still
 //! reported; the command then exits with status 2.
 
@@ -161,6 +163,37 @@ struct CurvenetReport {
     error: Option<AnalysisError>,
     /// The warnings about this curvenet (also in the report's `warnings`).
     warnings: Vec<String>,
+    /// Its `CurvenetAdjustment` prims, in the stage's child order.
+    adjustments: Vec<AdjustmentReport>,
+}
+
+/// A `CurvenetAdjustment` prim (schema/README.md).
+#[derive(Serialize)]
+struct AdjustmentReport {
+    path: String,
+    /// The knot's pool index.
+    knot: u32,
+    /// `intersection`, `anchor` or `pass-through` (a valence-2 knot).
+    knot_kind: &'static str,
+    valence: usize,
+    attach_tangents: bool,
+    /// The knot's tangent control points (the order of `curvenet:tangentTranslates`).
+    tangents: Vec<u32>,
+    /// The authored attributes and how many time samples each has (0: static).
+    attributes: BTreeMap<String, usize>,
+    /// The values at `--time` (the default values without it): translate,
+    /// rotate (`euler_xyz_degrees` or `quaternion_wxyz`), scale, tangent translates.
+    values: AdjustmentValues,
+}
+
+#[derive(Serialize)]
+struct AdjustmentValues {
+    time: Option<f64>,
+    translate: [f64; 3],
+    euler_xyz_degrees: Option<[f64; 3]>,
+    quaternion_wxyz: Option<[f64; 4]>,
+    scale: [f64; 3],
+    tangent_translates: Vec<[f64; 3]>,
 }
 
 #[derive(Serialize)]
@@ -558,7 +591,46 @@ fn curvenet_report(
         analysis,
         error,
         warnings,
+        adjustments: adjustment_reports(stage, c, time)?,
     })
+}
+
+/// The curvenet's adjustments with their values at `time`.
+fn adjustment_reports(stage: &Stage, c: &CurvenetData, time: Option<f64>) -> CliResult<Vec<AdjustmentReport>> {
+    let list = stage.curvenet_adjustments(c)?;
+    let values = stage.adjustments_at(std::slice::from_ref(&list), time)?;
+    Ok(list
+        .into_iter()
+        .zip(values)
+        .map(|(a, v)| {
+            let valence = c.splines.iter().map(|s| (s[0] == a.knot) as usize + (s[3] == a.knot) as usize).sum();
+            let (euler_xyz_degrees, quaternion_wxyz) = match v.rotate {
+                curvenet_core::Rotate::EulerXyz(e) => (Some(e), None),
+                curvenet_core::Rotate::Quaternion(q) => (None, Some(q)),
+            };
+            AdjustmentReport {
+                knot_kind: match valence {
+                    1 => "anchor",
+                    2 => "pass-through",
+                    _ => "intersection",
+                },
+                path: a.path,
+                knot: a.knot,
+                valence,
+                attach_tangents: a.attach_tangents,
+                tangents: a.tangents,
+                attributes: a.attributes.into_iter().map(|(name, times)| (name, times.len())).collect(),
+                values: AdjustmentValues {
+                    time,
+                    translate: v.translate,
+                    euler_xyz_degrees,
+                    quaternion_wxyz,
+                    scale: v.scale,
+                    tangent_translates: v.tangent_translates,
+                },
+            }
+        })
+        .collect())
 }
 
 fn unused_control_points(c: &CurvenetData) -> Vec<u32> {
@@ -760,11 +832,53 @@ fn text(r: &Report) -> String {
         if let Some(a) = &c.analysis {
             analysis_text(&mut s, a);
         }
+        for a in &c.adjustments {
+            adjustment_text(&mut s, a);
+        }
     }
     for w in &r.warnings {
         let _ = writeln!(s, "warning: {w}");
     }
     s
+}
+
+fn adjustment_text(s: &mut String, a: &AdjustmentReport) {
+    let attributes: Vec<String> = a
+        .attributes
+        .iter()
+        .map(|(name, n)| match n {
+            0 => format!("{name} (static)"),
+            n => format!("{name} ({n} time sample{})", plural(*n)),
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "  adjustment {}: knot {} ({}, valence {}), tangents {} ({}): {}",
+        a.path,
+        a.knot,
+        a.knot_kind,
+        a.valence,
+        if a.attach_tangents { "attached" } else { "free" },
+        list(&a.tangents),
+        if attributes.is_empty() { "nothing authored".to_string() } else { attributes.join(", ") }
+    );
+    let v = &a.values;
+    let rotate = match (v.euler_xyz_degrees, v.quaternion_wxyz) {
+        (_, Some(q)) => format!("orient (w, x, y, z) {q:?}"),
+        (Some(e), None) => format!("rotateXYZ {e:?} degrees"),
+        (None, None) => "no rotate".to_string(),
+    };
+    let _ = writeln!(
+        s,
+        "    {}: translate {:?}, {rotate}, scale {:?}, tangent translates {:?}",
+        match v.time {
+            Some(t) => format!("at time {t}"),
+            None => "default values".to_string(),
+        },
+        v.translate,
+        v.scale,
+        v.tangent_translates
+    );
 }
 
 fn binding_text(s: &mut String, b: &BindingReport) {

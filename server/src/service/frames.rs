@@ -154,7 +154,12 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = (frame.gradients || after.is_some()).then(|| vec![[0.0; 9]; n]);
     let mut ws = entry.take_workspace();
-    let r = b.deform(&FrameInput { posed: &posed, rest }, &mut ws, &mut points, gradients.as_deref_mut());
+    let r = b.deform(
+        &FrameInput { posed: &posed, rest, ..Default::default() },
+        &mut ws,
+        &mut points,
+        gradients.as_deref_mut(),
+    );
     entry.give_workspace(ws);
     r.map_err(|e| ServiceError::core(e, Phase::Frame))?;
     if let (Some((s, w)), Some(g)) = (after, gradients.as_deref()) {
