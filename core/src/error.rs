@@ -69,11 +69,15 @@ pub enum Error {
     /// (`path_length` infinite).
     #[error("{segment} at {position:?} (spline parameter {t:.3}) {}", detour_text(*path_length, *segment_length))]
     SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
-    /// Two curvenet segments meet at a point that is not a shared knot.
-    #[error("{segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)")]
+    /// Segments of two different curves run over one stretch of the surface
+    /// (overlapping curves or curvenets).
+    #[error(
+        "{segment} and {other} run over one stretch of the surface without a shared knot (overlapping curves or curvenets)"
+    )]
     CurvesOverlap { segment: SegmentRef, other: SegmentRef },
-    /// Two curvenet segments cross inside a face without a shared knot.
-    #[error("{segment} and {other} cross inside face {face} without a shared knot")]
+    /// In strict mode: two segments' surface paths meet at a point that is
+    /// not a shared knot (bound with a `CurvesTouch` warning otherwise).
+    #[error("{segment} and {other} meet at a point of face {face} that is not a shared knot")]
     CurvesCross { segment: SegmentRef, other: SegmentRef, face: u32 },
     /// A segment's chord crosses the boundary of the face it was traced in.
     #[error("{segment} crosses the boundary of face {face} (the face is too curved for its chord)")]

@@ -232,8 +232,8 @@ pub struct BindingTimings {
 /// Something the binding did that the user should know about.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split` or
-    /// `segment_detour`.
+    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split`,
+    /// `curves_touch` or `segment_detour`.
     pub code: String,
     pub message: String,
     /// The segment a `segment_detour` warning is about.

@@ -101,6 +101,11 @@ pub enum BindWarning {
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
     DegenerateCutFaces { count: usize },
+    /// Segments whose surface paths meet at points that are not shared knots
+    /// (`cut::Touch`): a path through another segment's sample or crossing,
+    /// or two paths crossing inside a face. Bound as if the curves met
+    /// there. `examples` names the first few: (segment, other, position).
+    CurvesTouch { count: usize, examples: Vec<(SegmentRef, SegmentRef, [f64; 3])> },
     /// Input faces folded over themselves in their own plane (strongly
     /// warped polygons) and were split into triangles ([`Surface::split_faces`]).
     FacesSplit { faces: Vec<u32> },
@@ -115,6 +120,11 @@ pub enum BindWarning {
     SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
 }
 
+impl BindWarning {
+    /// How many elements a warning lists at most.
+    pub const EXAMPLES: usize = 5;
+}
+
 impl std::fmt::Display for BindWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -127,6 +137,19 @@ impl std::fmt::Display for BindWarning {
             }
             BindWarning::DegenerateCutFaces { count } => {
                 write!(f, "{count} zero-area cut-faces were left out of the Laplacian")
+            }
+            BindWarning::CurvesTouch { count, examples } => {
+                let shown: Vec<String> = examples
+                    .iter()
+                    .map(|(a, b, [x, y, z])| format!("{a} and {b} at ({x:.4}, {y:.4}, {z:.4})"))
+                    .collect();
+                write!(
+                    f,
+                    "{count} point{} where two curves' projections onto the surface meet without a shared knot (a curve drawn across a concavity or a thin part, or two curves drawn close together), bound as if the curves met there: {}{}",
+                    if *count == 1 { "" } else { "s" },
+                    shown.join("; "),
+                    if *count > examples.len() { "; ..." } else { "" }
+                )
             }
             BindWarning::FacesSplit { faces } => {
                 let shown: Vec<String> = faces.iter().take(10).map(|f| f.to_string()).collect();
@@ -323,6 +346,8 @@ impl Binding {
         let mut segments = Vec::new();
         let mut sample_ref = Vec::new();
         let mut segment_ref = Vec::new();
+        let mut segment_curve = Vec::new();
+        let mut n_curves = 0u32;
         let mut nets = Vec::new();
         let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::default();
         let mut n_slots = 0u32;
@@ -340,6 +365,7 @@ impl Binding {
             for seg in layout.sampling().segments() {
                 segments.push(seg.samples.map(|i| i + range.sample));
                 segment_ref.push(SegmentRef { curvenet, spline: seg.spline, segment: seg.spline_segment });
+                segment_curve.push(n_curves + seg.curve);
                 for &i in &seg.samples {
                     sample_ref[first + i as usize].spline = seg.spline;
                 }
@@ -354,6 +380,7 @@ impl Binding {
                 }
             }
             n_slots += layout.constraints().len() as u32;
+            n_curves += layout.sampling().n_curves() as u32;
         }
         let cut = CutMesh::new(
             &surface,
@@ -362,6 +389,7 @@ impl Binding {
                 segments: &segments,
                 sample_ref: &sample_ref,
                 segment_ref: &segment_ref,
+                segment_curve: &segment_curve,
                 cancel,
             },
             &options.cut,
@@ -369,6 +397,28 @@ impl Binding {
         let mut warnings = Vec::new();
         if !surface.split_faces().is_empty() {
             warnings.push(BindWarning::FacesSplit { faces: surface.split_faces().to_vec() });
+        }
+        if let Some(first) = cut.touches().first() {
+            let at = |t: &cut::Touch| {
+                (segment_ref[t.segment as usize], segment_ref[t.other as usize], cut.vertex(t.vertex).pos.to_array())
+            };
+            if options.strict {
+                let (segment, other, _) = at(first);
+                let face = match cut.vertex(first.vertex).loc {
+                    locate::Location::Face { face, .. } => face,
+                    loc => {
+                        let mut faces = Vec::new();
+                        surface.faces_of(loc, &mut faces);
+                        faces.first().copied().unwrap_or(0)
+                    }
+                };
+                return Err(Error::CurvesCross { segment, other, face: surface.input_face(face) });
+            }
+            let touches = cut.touches();
+            warnings.push(BindWarning::CurvesTouch {
+                count: touches.len(),
+                examples: touches.iter().take(BindWarning::EXAMPLES).map(at).collect(),
+            });
         }
         for d in cut.detours() {
             let seg = segment_ref[d.segment as usize];
@@ -389,7 +439,7 @@ impl Binding {
         let n_vertices = surface.mesh.n_vertices();
         let mut corner = vec![Corner::Fixed; cut.n_halfedges()];
         let mut crossings: Vec<CrossingRow> = Vec::new();
-        let mut crossing_row: HashMap<(u32, Side), u32> = HashMap::default();
+        let mut crossing_row: HashMap<(u32, u32, Side), u32> = HashMap::default();
         let mut vertex_is_curve = vec![false; n_vertices];
         for h in 0..cut.n_halfedges() as u32 {
             cancel.check_every(h as usize, "assembly")?;
@@ -404,14 +454,16 @@ impl Binding {
             let (seg, side, end) = curve_side(&cut, h).ok_or_else(|| Error::Internal {
                 what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it"),
             })?;
-            let row = match cv.curve {
-                cut::CurvePoint::Crossing { segment, t } => {
-                    let key = (v, side);
+            // A vertex the segment's path passes through takes a crossing row
+            // of that segment; one of its samples, the sample's slot.
+            let row = match cut.crossing_t(v, seg) {
+                Some(t) => {
+                    let key = (v, seg, side);
                     match crossing_row.get(&key) {
                         Some(&r) => r,
                         None => {
-                            let lo = slot(&slot_of, segment, TAIL, side)?;
-                            let hi = slot(&slot_of, segment, HEAD, side)?;
+                            let lo = slot(&slot_of, seg, TAIL, side)?;
+                            let hi = slot(&slot_of, seg, HEAD, side)?;
                             let r = n_slots + crossings.len() as u32;
                             crossings.push(CrossingRow { lo, hi, t, vertex: v });
                             crossing_row.insert(key, r);
@@ -419,7 +471,7 @@ impl Binding {
                         }
                     }
                 }
-                _ => slot(&slot_of, seg, end, side)?,
+                None => slot(&slot_of, seg, end, side)?,
             };
             corner[h as usize] = Corner::Constraint(row);
         }
@@ -771,4 +823,37 @@ fn curve_side(cut: &CutMesh, h: u32) -> Option<(u32, Side, u8)> {
         g = t;
     }
     None
+}
+
+impl Binding {
+    /// Heap bytes held by the binding: the surface, the cut-mesh, the
+    /// factor (with its symbolic analysis), the curvenet layouts and every
+    /// per-corner, per-sample and per-vertex array. Add `std::mem::size_of::<Binding>()`
+    /// for the struct itself when it is boxed or shared.
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        self.surface.heap_bytes()
+            + self.cut.heap_bytes()
+            + bytes(&self.nets)
+            + bytes(&self.crossings)
+            + bytes(&self.corner)
+            + bytes(&self.unknown_vertex)
+            + bytes(&self.vertex_unknown)
+            + bytes(&self.face_laplacian)
+            + bytes(&self.face_laplacian_start)
+            + self.b.heap_bytes()
+            + self.factor.heap_bytes()
+            + bytes(&self.layouts)
+            + self.layouts.iter().map(|l| l.heap_bytes()).sum::<usize>()
+            + bytes(&self.slot_sample)
+            + bytes(&self.sample_projection)
+            + bytes(&self.sample_offset)
+            + bytes(&self.crossing_offset)
+            + bytes(&self.corner_r)
+            + bytes(&self.curve_vertices)
+            + bytes(&self.curve_vertex_start)
+            + bytes(&self.curve_vertex_rows)
+            + nested_bytes(&self.knots)
+            + bytes(&self.warnings)
+    }
 }

@@ -314,6 +314,7 @@ fn warning(w: &BindWarning) -> Warning {
         BindWarning::IslandsRemoved { .. } => ("islands_removed", None),
         BindWarning::DegenerateCutFaces { .. } => ("degenerate_cut_faces", None),
         BindWarning::FacesSplit { .. } => ("faces_split", None),
+        BindWarning::CurvesTouch { .. } => ("curves_touch", None),
         BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => (
             "segment_detour",
             Some(SegmentAt {
