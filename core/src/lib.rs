@@ -16,6 +16,7 @@ pub mod blend_shapes;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
+pub mod draft;
 pub mod error;
 pub mod halfedge;
 pub mod mesh;
