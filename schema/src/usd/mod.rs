@@ -14,6 +14,7 @@
 //! # Ok::<(), curvenet_schema::usd::UsdError>(())
 //! ```
 
+mod curvenet_layer;
 mod error;
 mod read;
 mod value;
@@ -23,5 +24,6 @@ pub use write::{
     encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
+pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;
 pub use read::Stage;
