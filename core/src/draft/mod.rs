@@ -14,8 +14,9 @@
 //!    projected onto the plane perpendicular to the axis.
 //! 2. **Rings** are the sections by `rings` planes perpendicular to the axis,
 //!    evenly spaced over [`DraftOptions::span`] (fractions of the mesh's
-//!    extent along the axis). Every closed loop of a section is a ring loop;
-//!    loops shorter than [`TINY_LOOP`] mean edges are dropped.
+//!    extent along the axis). Every loop of a section (or open polyline, on
+//!    a mesh with a boundary) is a ring loop; loops shorter than
+//!    [`TINY_LOOP`] mean edges are dropped.
 //! 3. **Lines** are the sections by `lines` *parallel* planes containing the
 //!    axis direction (normal: *across*), evenly spaced at `(j + 1) / (lines +
 //!    1)` of the mesh's extent across, so two lines never meet. Lines are
@@ -49,26 +50,46 @@
 //!
 //! # What is refused, and what is tried instead
 //!
-//! A ring plane position is refused when a crossing with a line is grazing
-//! (the two sections meet at less than [`MIN_CROSSING_DEGREES`] on the
-//! surface), when two knots come closer than [`MIN_KNOT_SEPARATION`] mean
-//! edges, when a line crosses a dropped (tiny) loop, when a line or ring
-//! passes within half that distance of the other's plane without crossing
-//! it near a knot (a near miss), when two of its loops come closer than that
-//! distance, or when its loops come near another ring's plane (tilted
-//! rings). The ring is then moved along the axis by ±1/16, ±2/16, ...,
-//! ±6/16 of the ring spacing, in that order, and a tilted ring tries the
-//! same positions untilted. When the finished curvenet fails the final
-//! check, the rings it blames are moved to their next position and the
-//! curvenet is built again; when a ring has no position left (or the lines
-//! are to blame), all line planes are moved together by ±1/4, ±1/8, ±3/8 of
-//! their spacing and the rings are placed again. The
-//! final check samples every spline, projects the samples onto the surface
-//! (closest points) and requires splines to stay [`MIN_CURVE_SEPARATION`]
-//! mean edges apart on the surface except where they are within
-//! [`NETWORK_NEIGHBOURHOOD`] mean edges of each other along the curvenet: so
-//! curves never cross except at shared knots. When
-//! nothing fits, [`DraftError::NoCleanLayout`] says why the last try failed.
+//! "On one sheet" below means in neighbouring fan triangles that face the
+//! same way (normals less than 60° apart, sharing a vertex or joined by an
+//! edge): the two sides of a thin fin, or a flipper against the body, are
+//! close in space but not on one sheet, and a curve may pass between them.
+//!
+//! A ring plane position is refused when
+//! - a crossing with a line is grazing (the two sections meet at less than
+//!   [`MIN_CROSSING_DEGREES`] on the surface), or one of the sections sees
+//!   a crossing the other does not (a crossing on a triangle edge);
+//! - two crossings come within [`MIN_KNOT_SEPARATION`] mean edges of each
+//!   other on one sheet (also against the rings placed before);
+//! - a line crosses one of its loops shorter than [`TINY_LOOP`] mean edges
+//!   (a dropped loop);
+//! - a near miss: the ring and a line come within [`MIN_KNOT_SEPARATION`]
+//!   mean edges of each other on one sheet, each within half that of the
+//!   other's plane, away from their crossings;
+//! - its section is pinched: two of its loops, or two parts of one loop
+//!   more than [`NETWORK_NEIGHBOURHOOD`] mean edges apart along it, come
+//!   within [`MIN_KNOT_SEPARATION`] mean edges on one sheet (a plane
+//!   through a saddle, a loop squeezed where a limb meets the body);
+//! - its loops come within [`MIN_KNOT_SEPARATION`] mean edges of another
+//!   ring's plane, or the other's loops of its plane (tilted rings).
+//!
+//! The ring is then moved along the axis by ±1/16, ±2/16, ..., ±6/16 of the
+//! ring spacing, in that order, and a tilted ring tries the same positions
+//! untilted.
+//!
+//! The finished curvenet is refused when a line's section is pinched
+//! between the end rings, or when the final check fails: every spline is
+//! sampled every quarter mean edge, the samples are projected onto the
+//! surface (closest points), and splines must stay [`MIN_CURVE_SEPARATION`]
+//! mean edges apart on one sheet except where they are within
+//! [`NETWORK_NEIGHBOURHOOD`] mean edges of each other along the curvenet
+//! (next to a shared knot, or where a curve turns around a thin part): so
+//! curves never cross except at shared knots. The rings the check blames
+//! are moved to their next position and the curvenet is built again; when
+//! a ring has no position left, or the lines are to blame, all line planes
+//! are moved together by ±1/4, ±1/8, ±3/8 of their spacing and the rings are
+//! placed again. When nothing fits, [`DraftError::NoCleanLayout`] says why
+//! the last try failed.
 //!
 //! # Determinism
 //!
