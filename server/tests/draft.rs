@@ -36,10 +36,12 @@ fn the_layer_binds_the_drafted_curvenet_to_the_mesh() {
     assert_eq!(drafted["report"]["intersections"], 2 * 3 * 3);
     assert_eq!(drafted["report"]["t_junctions"], 2 * 3 * 2);
 
-    // The layer sublayers the input by a relative path and binds only the new curvenet.
+    // The layer sublayers the input (relative to the layer's directory, or
+    // absolute) and binds only the new curvenet.
     let text = std::fs::read_to_string(&out).unwrap();
-    let relative = pathdiff(&out, CYLINDER);
-    assert!(text.contains(&format!("@{relative}@")), "no sublayer {relative} in\n{}", &text[..text.len().min(600)]);
+    let sublayer = text.split("subLayers = [@").nth(1).and_then(|t| t.split("@]").next()).expect("one sublayer");
+    let resolved = std::fs::canonicalize(out.parent().unwrap().join(sublayer)).unwrap();
+    assert_eq!(resolved, std::fs::canonicalize(common::repo().join(CYLINDER)).unwrap());
     let report = json(&curvenet(&["inspect", out.to_str().unwrap(), "--json"]));
     let mesh = &report["meshes"][0];
     assert_eq!(mesh["path"], "/Cylinder/Mesh");
@@ -60,22 +62,19 @@ fn the_layer_binds_the_drafted_curvenet_to_the_mesh() {
         text.replace("cylinder.draft.usda", "again.usda"),
         text_again.replace("cylinder.draft.usda", "again.usda")
     );
+    // Beside the input (in the same tree), the sublayer path is relative.
+    let near = common::repo().join("target").join(format!("curvenet-draft-test-{}", std::process::id()));
+    std::fs::create_dir_all(&near).unwrap();
+    let run =
+        curvenet(&["draft", CYLINDER, "--out", near.join("d.usda").to_str().unwrap(), "--rings", "3", "--lines", "0"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let text = std::fs::read_to_string(near.join("d.usda")).unwrap();
+    assert!(text.contains("subLayers = [@../../fixtures/cylinder/cylinder.usda@]"), "{}", &text[..text.len().min(400)]);
+    let _ = std::fs::remove_dir_all(&near);
     // A seed gives another draft.
     let seeded = json(&curvenet(&[&["draft", CYLINDER, "--json", "--seed", "3"][..], &args].concat()));
     assert_ne!(seeded["pool"], drafted["pool"]);
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// `target` relative to `layer`'s directory, as the layer names it.
-fn pathdiff(layer: &std::path::Path, target: &str) -> String {
-    let root = common::repo();
-    let dir = std::fs::canonicalize(layer.parent().unwrap()).unwrap();
-    let target = std::fs::canonicalize(root.join(target)).unwrap();
-    let (d, t): (Vec<_>, Vec<_>) = (dir.components().collect(), target.components().collect());
-    let common = d.iter().zip(&t).take_while(|(a, b)| a == b).count();
-    let mut parts: Vec<String> = vec!["..".into(); d.len() - common];
-    parts.extend(t[common..].iter().map(|c| c.as_os_str().to_string_lossy().into_owned()));
-    parts.join("/")
 }
 
 #[test]

@@ -29,7 +29,8 @@ ring or line when no position works. The same input and options give the same
 curvenet; --seed S adds a seeded random jitter (plane positions and tilts, the
 lines' direction, knot offsets and handles) for a different draft.
 
-Output (--out): a layer that sublayers INPUT (by a path relative to the layer),
+Output (--out): a layer that sublayers INPUT (by a path relative to the layer's
+directory, absolute when the two share only the root directory),
 defines the curvenet as a BasisCurves prim next to the mesh (named Curvenet, or
 Curvenet1, Curvenet2, ... when taken) following the curvenet contract
 (schema/README.md), and binds it with an `over` of the mesh authoring
