@@ -46,7 +46,11 @@
 //!    split at the worst point (a new valence-2 knot) while the error
 //!    exceeds [`FIT_TOLERANCE`] mean edges and the piece is longer than
 //!    [`MIN_SPLIT_LENGTH`] mean edges. Closed loops get at least 3 splines
-//!    (isolated loops 4).
+//!    (isolated loops 4). So the knots sit at their push off the surface
+//!    (at most the offset) and the curves, which the binding samples, within
+//!    the fit tolerance of the pushed sections; handles go wherever the fit
+//!    puts them (outside a convex arc, inside a concave one), so their own
+//!    distance to the surface is not bounded by the offset.
 //!
 //! # What is refused, and what is tried instead
 //!
