@@ -19,6 +19,7 @@ pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
 pub mod deformer;
+pub mod draft;
 pub mod error;
 pub mod halfedge;
 pub mod heap;

@@ -30,6 +30,8 @@ enum Command {
     Bake(cli::bake::Args),
     /// Merge the layers of a chunked bake into the layer one whole-range bake writes.
     Stitch(cli::stitch::Args),
+    /// Draft a starting curvenet on a mesh from plane sections (rings and lengthwise lines).
+    Draft(cli::draft::Args),
     /// Measure binding and per-frame solve times on the hand fixtures (the paper's Table 1).
     Bench(cli::bench::Args),
     /// Run the deformer HTTP service.
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
         Command::Stitch(args) => cli::stitch::run(&args),
+        Command::Draft(args) => cli::draft::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Serve(args) => cli::serve::run(&args),
     };

@@ -16,6 +16,7 @@
 
 mod adjust;
 mod confine;
+mod curvenet_layer;
 mod error;
 mod read;
 mod value;
@@ -26,5 +27,6 @@ pub use write::{
 };
 
 pub use adjust::ADJUSTMENT_TYPE;
+pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;
 pub use read::Stage;

@@ -136,6 +136,24 @@ impl Stage {
         Ok(out)
     }
 
+    /// The path of every `Mesh` prim on the stage, deformed or not, in
+    /// traversal order.
+    pub fn mesh_paths(&self) -> Result<Vec<String>> {
+        let mut out = Vec::new();
+        for path in self.all_prims()? {
+            let prim = self.prim(path.as_str())?;
+            if self.type_name(&prim)? == "Mesh" {
+                out.push(path.as_str().to_string());
+            }
+        }
+        Ok(out)
+    }
+
+    /// Whether the composed stage has a prim at `path`.
+    pub fn has_prim(&self, path: &str) -> bool {
+        self.prim(path).is_ok()
+    }
+
     /// Every curvenet prim on the stage (`BasisCurves` with `primvars:curvenet:cv`).
     pub fn curvenets(&self) -> Result<Vec<CurvenetData>> {
         let mut out = Vec::new();

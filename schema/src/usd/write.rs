@@ -59,7 +59,7 @@ impl LayerFormat {
         }
     }
 
-    fn id(self) -> &'static str {
+    pub(super) fn id(self) -> &'static str {
         match self {
             Self::Usda => "usda",
             Self::Usdc => "usdc",
@@ -147,7 +147,11 @@ pub fn encode_points_overrides(
 }
 
 /// Serialises `data` in `format` into `sink`.
-fn encode_layer(data: &sdf::Data, format: LayerFormat, sink: &mut dyn sdf::WriteSeek) -> Result<(), WriteError> {
+pub(super) fn encode_layer(
+    data: &sdf::Data,
+    format: LayerFormat,
+    sink: &mut dyn sdf::WriteSeek,
+) -> Result<(), WriteError> {
     let encoder = sdf::LayerRegistry::find_by_id(format.id())
         .ok_or(WriteError::Encode { format: format.id(), message: "the format is not registered".into() })?;
     encoder.write(data, sink).map_err(|e| match e {
@@ -173,7 +177,7 @@ pub fn write_points_overrides(
 
 /// Runs `write` on a fresh temporary file beside `path`, syncs it and renames
 /// it over `path`; on any failure removes the temporary file.
-fn write_atomically(
+pub(super) fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<(), WriteError>,
 ) -> Result<(), WriteError> {

@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod bench;
+pub mod draft;
 pub mod inspect;
 pub mod serve;
 pub mod stitch;
