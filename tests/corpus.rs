@@ -145,7 +145,7 @@ fn bend(rel: &str) {
 }
 
 /// One module per fixture with its three (or two) tests; an attribute list
-/// before a test marks it (e.g. `#[ignore = "..."]`).
+/// before a test marks it (e.g. ``).
 macro_rules! fixture {
     ($name:ident, $rel:literal, neutral: [$(#[$n:meta])*], rigid: [$(#[$r:meta])*], bend: [$(#[$b:meta])*]) => {
         mod $name {
@@ -182,18 +182,15 @@ macro_rules! fixture {
     };
 }
 
-// Ignored today (issue 13; the reasons as measured): bindings that fail
-// with SegmentNotTraced wait for the embedding fallback; three fixtures bind
-// but their neutral pose (hence the rigid motion) is off by 1e-6 to 9e-6 of
-// the diagonal, no binding warning.
+// Every corpus fixture and hand, every check (none is ignored).
 fixture!(fish_cc2, "corpus/fish_cc2.usda", neutral: [], rigid: [], bend: []);
-fixture!(fish_cc3, "corpus/fish_cc3.usdc", neutral: [#[ignore = "issue 13: the neutral pose is off by 5.1e-6 of the diagonal"]], rigid: [#[ignore = "issue 13: the neutral pose is off by 5.1e-6 of the diagonal"]], bend: []);
-fixture!(penguin_cc2, "corpus/penguin_cc2.usda", neutral: [#[ignore = "issue 13: the neutral pose is off by 8.9e-6 of the diagonal"]], rigid: [#[ignore = "issue 13: the neutral pose is off by 8.9e-6 of the diagonal"]], bend: []);
-fixture!(penguin_cc3, "corpus/penguin_cc3.usdc", neutral: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], rigid: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], bend: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]]);
-fixture!(fish, "corpus/fish.usdc", neutral: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], rigid: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], bend: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]]);
-fixture!(penguin, "corpus/penguin.usda", neutral: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], rigid: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], bend: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]]);
-fixture!(scorpion, "corpus/scorpion.usdc", neutral: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], rigid: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]], bend: [#[ignore = "needs the embedding fallback (issue 13): SegmentNotTraced"]]);
-fixture!(koala, "corpus/koala.usdc", neutral: [#[ignore = "issue 13: the neutral pose is off by 1.0e-6 of the diagonal"]], rigid: [#[ignore = "issue 13: the neutral pose is off by 1.0e-6 of the diagonal"]], bend: []);
+fixture!(fish_cc3, "corpus/fish_cc3.usdc", neutral: [], rigid: [], bend: []);
+fixture!(penguin_cc2, "corpus/penguin_cc2.usda", neutral: [], rigid: [], bend: []);
+fixture!(penguin_cc3, "corpus/penguin_cc3.usdc", neutral: [], rigid: [], bend: []);
+fixture!(fish, "corpus/fish.usdc", neutral: [], rigid: [], bend: []);
+fixture!(penguin, "corpus/penguin.usda", neutral: [], rigid: [], bend: []);
+fixture!(scorpion, "corpus/scorpion.usdc", neutral: [], rigid: [], bend: []);
+fixture!(koala, "corpus/koala.usdc", neutral: [], rigid: [], bend: []);
 fixture!(hand_1k4, "hand/hand_1k4.usda", neutral: [], rigid: []);
 fixture!(hand_closed, "hand/hand_closed.usda", neutral: [], rigid: []);
 fixture!(hand_lowres, "hand/hand_lowres.usda", neutral: [], rigid: []);

@@ -3,7 +3,8 @@
 //! principal one), ring and line counts (rings only: ring/loop networks;
 //! with lines: spline networks with intersections and T-junctions), span,
 //! offsets up to 2 % of the diagonal, jittered planes, knots and handles -
-//! each bound as the bake binds. Every binding must succeed.
+//! each bound as the bake binds. Every binding must succeed, give the mesh
+//! back in the neutral pose and move it rigidly with a rigid motion.
 //!
 //! Each draw's options follow from its seed alone, so a failure is replayed
 //! with `CURVENET_STRESS_SEED=<seed>` (the failure message prints the
@@ -60,6 +61,41 @@ enum Outcome {
     DraftCrosses(String, String),
 }
 
+/// A bound curvenet must give the mesh back in its neutral pose
+/// (≤ 1e-9 × diagonal) and move it rigidly with a rigid motion of the
+/// curvenet (≤ 1e-6 × diagonal).
+fn frames_check(b: &Binding, pool: &[[f64; 3]], points: &[[f64; 3]]) -> Outcome {
+    let diag = curvenet_core::mesh::bounding_box_diagonal(points);
+    let (c, s) = (0.6f64.cos(), 0.6f64.sin());
+    // A rotation of 0.6 rad about (1, 2, 2)/3 and a shift.
+    let (x, y, z) = (1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0);
+    let r = [
+        [c + x * x * (1.0 - c), x * y * (1.0 - c) - z * s, x * z * (1.0 - c) + y * s],
+        [y * x * (1.0 - c) + z * s, c + y * y * (1.0 - c), y * z * (1.0 - c) - x * s],
+        [z * x * (1.0 - c) - y * s, z * y * (1.0 - c) + x * s, c + z * z * (1.0 - c)],
+    ];
+    let motion = |p: &[f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + [0.3, -0.1, 0.2][i] * diag)
+    };
+    let mut ws = b.workspace();
+    let mut out = vec![[0.0; 3]; b.n_vertices()];
+    let moved_pool: Vec<[f64; 3]> = pool.iter().map(motion).collect();
+    for (what, pose, want, tol) in [
+        ("NeutralPoseOff", pool.to_vec(), points.to_vec(), 1e-9),
+        ("RigidMotionOff", moved_pool, points.iter().map(motion).collect(), 1e-6),
+    ] {
+        let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest: None, ..Default::default() };
+        if let Err(e) = b.deform(&input, &mut ws, &mut out, None) {
+            return Outcome::Failed(kind(&format!("{e:?}")), format!("{what}: the frame failed: {e}"));
+        }
+        let off = max_distance(&out, &want);
+        if !(off <= tol * diag) {
+            return Outcome::Failed(what.to_string(), format!("the mesh is {:.3e} of the diagonal off", off / diag));
+        }
+    }
+    Outcome::Bound
+}
+
 /// The variant name of an error's `Debug` form.
 fn kind(debug: &str) -> String {
     debug.split(|c: char| !c.is_alphanumeric() && c != '_').next().unwrap_or(debug).to_string()
@@ -78,7 +114,7 @@ fn attempt(topology: &PolyMesh, points: &[[f64; 3]], seed: u64) -> Outcome {
         Err(e) => return Outcome::Failed(kind(&format!("{e:?}")), e.to_string()),
     };
     let e = match Binding::new(topology, points, &[&layout], &BindOptions::default()) {
-        Ok(_) => return Outcome::Bound,
+        Ok(b) => return frames_check(&b, &d.pool, points),
         Err(e) => e,
     };
     let k = kind(&format!("{e:?}"));
@@ -182,49 +218,41 @@ fn test_name(rel: &str) -> String {
 
 // Draws per mesh: 382 in all (a few are refused by the drafter), fewer on the largest meshes.
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn fish_cc2() {
     stress("corpus/fish_cc2.usda", 80);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn fish_cc3() {
     stress("corpus/fish_cc3.usdc", 50);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn penguin_cc2() {
     stress("corpus/penguin_cc2.usda", 60);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn penguin_cc3() {
     stress("corpus/penguin_cc3.usdc", 40);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn fish() {
     stress("corpus/fish.usdc", 40);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn penguin() {
     stress("corpus/penguin.usda", 60);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn scorpion() {
     stress("corpus/scorpion.usdc", 40);
 }
 
 #[test]
-#[ignore = "needs the embedding fallback (issue 13)"]
 fn koala() {
     stress("corpus/koala.usdc", 12);
 }

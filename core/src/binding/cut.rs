@@ -56,27 +56,14 @@ pub struct CutInput<'a> {
     pub sample_ref: &'a [SampleRef],
     /// Each segment as users number it (curvenet, spline, segment within the spline).
     pub segment_ref: &'a [SegmentRef],
-    /// The curve of each segment, numbered across all curvenets: segments of
-    /// one curve may fold over each other in projection, different curves
-    /// may only meet at points.
+    /// The curve of each segment, numbered across all curvenets (samples of
+    /// one curve merging into one cut-vertex is no touch; of two, it is).
     pub segment_curve: &'a [u32],
     /// Checked per sample, segment and face ([`Error::Cancelled`]).
     pub cancel: &'a crate::Cancel,
 }
 
 impl CutInput<'_> {
-    /// An overlap of two segments' paths along a stretch: allowed within one
-    /// curve (it folded back over itself in projection), an error between
-    /// two curves (they overlap).
-    fn overlap(&self, segment: u32, other: u32) -> Result<()> {
-        let curve = |s: u32| self.segment_curve.get(s as usize).copied();
-        if curve(segment) == curve(other) {
-            Ok(())
-        } else {
-            Err(Error::CurvesOverlap { segment: self.segment(segment), other: self.segment(other) })
-        }
-    }
-
     fn segment(&self, s: u32) -> SegmentRef {
         self.segment_ref.get(s as usize).copied().unwrap_or(SegmentRef { curvenet: 0, spline: u32::MAX, segment: s })
     }
@@ -204,6 +191,10 @@ pub struct Touch {
     pub segment: u32,
     pub other: u32,
     pub vertex: u32,
+    /// The two paths run over a stretch from `vertex` (one curve folding
+    /// back over itself, or two curves projecting onto one line, as either
+    /// side of a thin part does), rather than meeting at a point.
+    pub stretch: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -289,7 +280,7 @@ impl CutMesh {
                     let (si, sj) = (sample_segment[i], sample_segment[j as usize]);
                     let curve = |s: u32| input.segment_curve.get(s as usize).copied();
                     if si != INVALID && sj != INVALID && curve(si) != curve(sj) {
-                        reg.touches.push(Touch { segment: si, other: sj, vertex: cv });
+                        reg.touches.push(Touch { segment: si, other: sj, vertex: cv, stretch: false });
                     }
                 }
                 _ => {
@@ -350,7 +341,7 @@ impl CutMesh {
                     if reg.vertices[cv as usize].mask & (SAMPLE | CROSSING) != 0 {
                         // Another segment's sample or crossing: the paths touch here.
                         let other = reg.segment_at(cv, input);
-                        reg.touches.push(Touch { segment: s as u32, other, vertex: cv });
+                        reg.touches.push(Touch { segment: s as u32, other, vertex: cv, stretch: false });
                         reg.extra.entry(cv).or_default().push(point);
                     } else {
                         reg.vertices[cv as usize].curve = point;
@@ -549,16 +540,10 @@ impl<'s> Registry<'s> {
     /// The chords of face `f` with every crossing between two of them made
     /// a cut-vertex on both (a [`Touch`]), and every chord end lying inside
     /// another chord made a vertex of that chord too, so that the face's
-    /// graph is planar. Collinear chords of one curve are cut at each
-    /// other's ends and their shared pieces merged (the first segment's is
-    /// kept); of two curves, they overlap ([`Error::CurvesOverlap`]).
-    fn split_crossing_chords(
-        &mut self,
-        surface: &Surface,
-        f: u32,
-        chords: &[Piece],
-        input: CutInput<'_>,
-    ) -> Result<Vec<Piece>> {
+    /// graph is planar. Collinear chords are cut at each other's ends and
+    /// their shared pieces merged (the first segment's is kept): a stretch
+    /// [`Touch`].
+    fn split_crossing_chords(&mut self, surface: &Surface, f: u32, chords: &[Piece]) -> Vec<Piece> {
         let n = chords.len();
         let p2 = |v: u32, this: &Self| surface.position_2d(f, this.vertices[v as usize].loc);
         // Per chord: (parameter along it, cut-vertex, arc-length fraction along its segment).
@@ -585,8 +570,9 @@ impl<'s> Registry<'s> {
                         continue;
                     }
                     let (u0, u1) = ((c - a).dot(r) / rr, (d - a).dot(r) / rr);
-                    if u0.max(u1) > eps && u0.min(u1) < 1.0 - eps {
-                        input.overlap(ci.segment, cj.segment)?;
+                    if u0.max(u1) > eps && u0.min(u1) < 1.0 - eps && ci.segment != cj.segment {
+                        let vertex = if (eps..1.0 - eps).contains(&u0) { cj.a } else { cj.b };
+                        self.touches.push(Touch { segment: cj.segment, other: ci.segment, vertex, stretch: true });
                     }
                     for (v, x) in [(cj.a, c), (cj.b, d)] {
                         let u = (x - a).dot(r) / rr;
@@ -684,8 +670,8 @@ impl<'s> Registry<'s> {
             let key = (p.a.min(p.b), p.a.max(p.b));
             match seen.get(&key) {
                 Some(&other) => {
-                    input.overlap(p.segment, other)?;
                     if other != p.segment {
+                        self.touches.push(Touch { segment: p.segment, other, vertex: p.a, stretch: true });
                         for (v, t) in [(p.a, p.ta), (p.b, p.tb)] {
                             if !self.on_segment(v, p.segment) {
                                 self.touch(v, p.segment, t, other);
@@ -699,7 +685,7 @@ impl<'s> Registry<'s> {
                 }
             }
         }
-        Ok(merged)
+        merged
     }
 
     /// Whether cut-vertex `v` already carries a curve point of `segment`
@@ -715,7 +701,7 @@ impl<'s> Registry<'s> {
     fn touch(&mut self, v: u32, segment: u32, t: f64, other: u32) {
         self.vertices[v as usize].mask |= CROSSING;
         self.extra.entry(v).or_default().push(CurvePoint::Crossing { segment, t });
-        self.touches.push(Touch { segment, other, vertex: v });
+        self.touches.push(Touch { segment, other, vertex: v, stretch: false });
     }
 
     fn build(
@@ -771,8 +757,7 @@ impl<'s> Registry<'s> {
                     match taken {
                         // Its ends carry the other segment's curve points already.
                         Some(other) if other != p.segment => {
-                            input.overlap(p.segment, other)?;
-                            self.touches.push(Touch { segment: p.segment, other, vertex: x });
+                            self.touches.push(Touch { segment: p.segment, other, vertex: x, stretch: true });
                         }
                         Some(_) => {}
                         None => {
@@ -832,7 +817,7 @@ impl<'s> Registry<'s> {
                 pslg.edge(k, (k + 1) % nb, INVALID, false);
             }
             if let Some(list) = chords.get(&f) {
-                let split = self.split_crossing_chords(surface, f, list, input)?;
+                let split = self.split_crossing_chords(surface, f, list);
                 removed_vertices.resize(self.vertices.len(), false);
                 for p in &split {
                     let (a, b) = (p.a, p.b);

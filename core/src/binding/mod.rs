@@ -101,10 +101,11 @@ pub enum BindWarning {
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
     DegenerateCutFaces { count: usize },
-    /// Segments whose surface paths meet at points that are not shared knots
+    /// Segments whose surface paths meet where there is no shared knot
     /// (`cut::Touch`): a path through another segment's sample or crossing,
-    /// or two paths crossing inside a face. Bound as if the curves met
-    /// there. `examples` names the first few: (segment, other, position).
+    /// two paths crossing inside a face, or two paths over one stretch.
+    /// Bound as if the curves met there. `examples` names the first few:
+    /// (segment, other, position).
     CurvesTouch { count: usize, examples: Vec<(SegmentRef, SegmentRef, [f64; 3])> },
     /// Input faces folded over themselves in their own plane (strongly
     /// warped polygons) and were split into triangles ([`Surface::split_faces`]).
@@ -398,7 +399,9 @@ impl Binding {
         if !surface.split_faces().is_empty() {
             warnings.push(BindWarning::FacesSplit { faces: surface.split_faces().to_vec() });
         }
-        if let Some(first) = cut.touches().first() {
+        // Strict mode names a stretch first (the graver), else the first point.
+        let worst = cut.touches().iter().find(|t| t.stretch).or(cut.touches().first());
+        if let Some(first) = worst {
             let at = |t: &cut::Touch| {
                 (segment_ref[t.segment as usize], segment_ref[t.other as usize], cut.vertex(t.vertex).pos.to_array())
             };
@@ -412,7 +415,11 @@ impl Binding {
                         faces.first().copied().unwrap_or(0)
                     }
                 };
-                return Err(Error::CurvesCross { segment, other, face: surface.input_face(face) });
+                return Err(if first.stretch {
+                    Error::CurvesOverlap { segment, other }
+                } else {
+                    Error::CurvesCross { segment, other, face: surface.input_face(face) }
+                });
             }
             let touches = cut.touches();
             warnings.push(BindWarning::CurvesTouch {
