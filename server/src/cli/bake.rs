@@ -309,7 +309,7 @@ fn bind(
     adjustments: Vec<Vec<AdjustmentData>>,
 ) -> CliResult<MeshJob> {
     let n = mesh.projection_points.len();
-    let binding = super::bind_mesh(&mesh, &nets)?;
+    let (binding, _analysis_ms) = super::bind_mesh(&mesh, &nets)?;
     let shapes = mesh
         .blend_shapes
         .iter()

@@ -19,6 +19,7 @@ use std::fmt::Write as _;
 use curvenet_core::curvenet::CurveEnd;
 use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
+use curvenet_schema::wire::{BindingStats, BindingTimings};
 use curvenet_schema::{CurvenetData, MeshData};
 use serde::Serialize;
 
@@ -88,47 +89,12 @@ struct MeshReport {
 #[derive(Serialize)]
 struct BindingReport {
     /// `None` when the binding failed (then `error` says why).
-    stats: Option<BindStatsReport>,
-    timings_ms: Option<BindTimingsReport>,
-    /// Wall time of the whole binding (analysis and sampling included).
-    total_ms: f64,
+    /// The same counts and times, by the same names, as the service's
+    /// binding response (`schema::wire`).
+    stats: Option<BindingStats>,
+    timings: Option<BindingTimings>,
     warnings: Vec<String>,
     error: Option<String>,
-}
-
-#[derive(Serialize)]
-struct BindStatsReport {
-    samples: usize,
-    segments: usize,
-    cut_vertices: usize,
-    cut_faces: usize,
-    cut_halfedges: usize,
-    cracks: usize,
-    islands_removed: usize,
-    /// How the segments were embedded: chords inside one face, straightest
-    /// paths, fallback paths (shortest in a strip of faces), left out
-    /// (samples on two components); and detours (warnings).
-    embedded: EmbeddedReport,
-    unknowns: usize,
-    constraints: usize,
-    factor_nonzeros: usize,
-}
-
-#[derive(Serialize)]
-struct EmbeddedReport {
-    chord: usize,
-    straightest: usize,
-    fallback: usize,
-    left_out: usize,
-    detours: usize,
-}
-
-#[derive(Serialize)]
-struct BindTimingsReport {
-    surface: f64,
-    cutting: f64,
-    assembly: f64,
-    factor: f64,
 }
 
 #[derive(Serialize, Default)]
@@ -439,42 +405,13 @@ fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
     let bound = super::bind_mesh(m, &nets);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
-        Ok(b) => {
-            let (st, t) = (b.stats(), b.timings());
-            BindingReport {
-                stats: Some(BindStatsReport {
-                    samples: st.samples,
-                    segments: st.segments,
-                    cut_vertices: st.cut_vertices,
-                    cut_faces: st.cut_faces,
-                    cut_halfedges: st.cut_halfedges,
-                    cracks: st.cracks,
-                    islands_removed: st.islands_removed,
-                    embedded: EmbeddedReport {
-                        chord: st.embedding.chord,
-                        straightest: st.embedding.straightest,
-                        fallback: st.embedding.fallback,
-                        left_out: st.embedding.disconnected,
-                        detours: st.detours,
-                    },
-                    unknowns: st.unknowns,
-                    constraints: st.constraints,
-                    factor_nonzeros: st.factor_nonzeros,
-                }),
-                timings_ms: Some(BindTimingsReport {
-                    surface: t.surface_ms,
-                    cutting: t.cutting_ms,
-                    assembly: t.assembly_ms,
-                    factor: t.factor_ms,
-                }),
-                total_ms,
-                warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
-                error: None,
-            }
-        }
-        Err(e) => {
-            BindingReport { stats: None, timings_ms: None, total_ms, warnings: Vec::new(), error: Some(e.to_string()) }
-        }
+        Ok((b, analysis_ms)) => BindingReport {
+            stats: Some(BindingStats::from(&b.stats())),
+            timings: Some(BindingTimings::new(analysis_ms, &b.timings(), total_ms)),
+            warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
+            error: None,
+        },
+        Err(e) => BindingReport { stats: None, timings: None, warnings: Vec::new(), error: Some(e.to_string()) },
     })
 }
 
@@ -883,9 +820,9 @@ fn adjustment_text(s: &mut String, a: &AdjustmentReport) {
 
 fn binding_text(s: &mut String, b: &BindingReport) {
     if let Some(e) = &b.error {
-        let _ = writeln!(s, "  binding failed after {:.1} ms: {e}", b.total_ms);
+        let _ = writeln!(s, "  binding failed: {e}");
     }
-    if let (Some(st), Some(t)) = (&b.stats, &b.timings_ms) {
+    if let (Some(st), Some(t)) = (&b.stats, &b.timings) {
         let _ = writeln!(
             s,
             "  binding: {} samples, {} segments -> {} cut-vertices, {} cut-faces, {} cut-halfedges, {} crack{}, {} island{} removed",
@@ -899,16 +836,15 @@ fn binding_text(s: &mut String, b: &BindingReport) {
             st.islands_removed,
             plural(st.islands_removed)
         );
-        let e = &st.embedded;
         let _ = writeln!(
             s,
             "  segments embedded: {} inside one face, {} by straightest path, {} by fallback path, {} left out; {} detour{}",
-            e.chord,
-            e.straightest,
-            e.fallback,
-            e.left_out,
-            e.detours,
-            plural(e.detours)
+            st.chord_paths,
+            st.straightest_paths,
+            st.fallback_paths,
+            st.segments_left_out,
+            st.detours,
+            plural(st.detours)
         );
         let _ = writeln!(
             s,
@@ -917,8 +853,8 @@ fn binding_text(s: &mut String, b: &BindingReport) {
         );
         let _ = writeln!(
             s,
-            "  binding time: {:.1} ms (surface {:.1}, cutting {:.1}, assembly {:.1}, factor {:.1}; the rest is analysis and sampling)",
-            b.total_ms, t.surface, t.cutting, t.assembly, t.factor
+            "  binding time: {:.1} ms (analysis {:.1}, surface {:.1}, cutting {:.1}, assembly {:.1}, factor {:.1})",
+            t.total_ms, t.analysis_ms, t.surface_ms, t.cutting_ms, t.assembly_ms, t.factor_ms
         );
     }
 }
