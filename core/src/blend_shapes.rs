@@ -31,6 +31,15 @@ pub struct BlendShape {
 }
 
 impl BlendShape {
+    /// Heap bytes held by the shape: its offsets, indices and inbetweens (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        bytes(&self.offsets)
+            + self.point_indices.as_ref().map_or(0, bytes)
+            + bytes(&self.weights)
+            + nested_bytes(&self.sub_offsets)
+    }
+
     /// A shape over a mesh of `n_points` points: `offsets` of the full shape
     /// (weight 1), the vertex of each offset (`None`: dense, one per point),
     /// and inbetweens as `(weight, offsets)` laid out like `offsets`.
@@ -183,18 +192,7 @@ impl BlendShapes {
 impl BlendShapes {
     /// Heap bytes held by the shapes, their offsets, indices and inbetweens (see [`crate::heap`]).
     pub fn heap_bytes(&self) -> usize {
-        use crate::heap::{bytes, nested_bytes};
-        bytes(&self.shapes)
-            + self
-                .shapes
-                .iter()
-                .map(|s| {
-                    bytes(&s.offsets)
-                        + s.point_indices.as_ref().map_or(0, bytes)
-                        + bytes(&s.weights)
-                        + nested_bytes(&s.sub_offsets)
-                })
-                .sum::<usize>()
+        crate::heap::bytes(&self.shapes) + self.shapes.iter().map(BlendShape::heap_bytes).sum::<usize>()
     }
 }
 

@@ -163,6 +163,7 @@ impl Deformer {
         let mesh = PolyMesh::new(m.face_vertex_counts, m.face_vertex_indices, n)?;
         let surface = Surface::new(&mesh, m.projection_points)?;
         let surface_ms = ms(t0);
+        input.options.bind.cancel.check("the curvenet analysis")?;
         let t1 = Instant::now();
         let layouts = input
             .curvenets
@@ -289,6 +290,16 @@ impl Deformer {
         if pool.len() < KEEP_WORKSPACES {
             pool.push(s);
         }
+    }
+
+    /// Makes one frame workspace now, so the first frame finds it in the
+    /// pool, and returns its heap bytes (for callers that budget memory per
+    /// workspace: one is kept per thread that solves frames at once).
+    pub fn prepare_workspace(&self) -> usize {
+        let s = self.take();
+        let bytes = s.ws.heap_bytes();
+        self.give(s);
+        bytes
     }
 
     /// The binding (cut-mesh, factor, analysed curvenets, warnings, stats).

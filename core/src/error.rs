@@ -4,8 +4,10 @@
 
 /// Errors raised by curvenet-core. User mistakes (bad input) and internal
 /// failures are separate variants; the latter should never happen.
+///
+/// Not `#[non_exhaustive]`: the service maps every variant to an error
+/// code explicitly, so a new variant does not compile until it has one.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[non_exhaustive]
 pub enum Error {
     /// A polygon mesh or curvenet has no elements where some are required.
     #[error("{what} is empty")]

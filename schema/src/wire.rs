@@ -408,11 +408,99 @@ pub struct BakeResponse {
 }
 
 /// Every error answer: a stable snake_case `code` (see the service's code
-/// table) and a message naming the offending element.
+/// table), a message naming the offending element, and, when the error is
+/// about elements of the request, `details` naming them by field.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct ErrorBody {
     pub code: String,
     pub message: String,
+    /// The elements the error is about; absent when it names none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub details: Option<ErrorDetails>,
+}
+
+/// The elements an error is about, each numbered as in the request (absent
+/// fields are omitted). Curvenets are numbered in the binding request's
+/// order, splines within their curvenet, segments within their spline (from
+/// its control point 0), samples within their curvenet; faces and vertices
+/// are the request mesh's.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ErrorDetails {
+    /// The frame of a batch (its index in `frames`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<usize>,
+    /// The curvenet (index in `curvenets`, or in a frame's `posed`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub curvenet: Option<u32>,
+    /// The spline, within its curvenet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spline: Option<u32>,
+    /// Two splines (both leave one intersection in the same direction).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub splines: Option<[u32; 2]>,
+    /// The segment, within its spline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub segment: Option<u32>,
+    /// The other segment of two that overlap or cross.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub other: Option<SegmentId>,
+    /// The sample, within its curvenet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sample: Option<u32>,
+    /// A control point of the curvenet's pool (an intersection or a knot).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub control_point: Option<u32>,
+    /// A face of the mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub face: Option<usize>,
+    /// Faces of the mesh (those sharing an edge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub faces: Option<Vec<u32>>,
+    /// A vertex of the mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertex: Option<u32>,
+    /// Vertices of the mesh (a face's corners, coincident corners).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertices: Option<Vec<u32>>,
+    /// A mesh edge, as its two vertices.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edge: Option<[u32; 2]>,
+    /// A connected component of the mesh.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub component: Option<usize>,
+    /// The row of the failing pivot of a factorisation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub row: Option<usize>,
+    /// A Curvenet Adjustment (its index), or two of them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adjustment: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adjustments: Option<[usize; 2]>,
+    /// The array or quantity the error is about (`rest`, `blend_shape_weights`, `face vertex index`, ...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub what: Option<String>,
+    /// The index into `what`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub index: Option<usize>,
+    /// The count expected and the count given (`count_mismatch`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub expected: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub got: Option<usize>,
+    /// The spline parameter of the place (a segment's midpoint, as a fraction of arc length).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The place, in the projection pose.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position: Option<[f64; 3]>,
+}
+
+/// A curvenet segment: the curvenet, the spline within it, the segment within the spline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct SegmentId {
+    pub curvenet: u32,
+    pub spline: u32,
+    pub segment: u32,
 }
 
 /// `/healthz` and `/readyz`.

@@ -9,14 +9,14 @@
 //! then (1) one client sends frames one after another, to compare the
 //! binary round trip with the core solve alone, and (2) `--clients`
 //! clients each send `--frames` binary frames concurrently. Every answer is
-//! compared with an in-process `Binding::deform` of the same (f32) pose;
+//! compared with an in-process `Deformer::frame` of the same (f32) pose;
 //! any mismatch or error makes the command exit 1. Prints throughput,
 //! p50/p99 latency and the core solve median. Stops by itself.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse};
 use curvenet_server::{AppState, Config};
@@ -120,40 +120,31 @@ fn main() {
 
     // The in-process reference: bind, then solve every pose (single thread).
     let t = Instant::now();
-    let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, req.projection_points.len()).unwrap();
-    let layouts: Vec<CurvenetLayout> = req
+    let curvenets: Vec<CurvenetInput> = req
         .curvenets
         .iter()
-        .map(|c| {
-            let net = Curvenet::new(&c.splines, &c.pool).unwrap();
-            CurvenetLayout::new(
-                &net,
-                &mesh,
-                &req.projection_points,
-                &SamplingOptions::default().with_density(c.sample_density),
-            )
-            .unwrap()
-        })
+        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
         .collect();
-    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::new(&mesh, &req.projection_points, &refs, &BindOptions::default()).unwrap();
+    let deformer = Deformer::new(&DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &req.face_vertex_counts,
+            face_vertex_indices: &req.face_vertex_indices,
+            projection_points: &req.projection_points,
+        },
+        curvenets: &curvenets,
+        blend_shapes: Vec::new(),
+        options: DeformerOptions::default(),
+    })
+    .unwrap();
     println!("in-process binding: {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
     let poses: Vec<Vec<[f64; 3]>> = (0..POSES).map(|i| pose(&req.curvenets[0].pool, i)).collect();
-    let mut ws = binding.workspace();
-    let mut out = vec![[0.0; 3]; binding.n_vertices()];
+    let mut out = vec![[0.0; 3]; deformer.n_vertices()];
     let mut core_ms = Vec::new();
     let mut expected: Vec<Vec<f32>> = Vec::new();
     for round in 0..3 {
         for p in &poses {
             let t = Instant::now();
-            binding
-                .deform(
-                    &FrameInput { posed: &[Some(p.as_slice())], rest: None, ..Default::default() },
-                    &mut ws,
-                    &mut out,
-                    None,
-                )
-                .unwrap();
+            deformer.frame(&Frame { posed: &[Some(p.as_slice())], ..Default::default() }, &mut out, None).unwrap();
             core_ms.push(t.elapsed().as_secs_f64() * 1e3);
             if round == 0 {
                 expected.push(out.iter().flat_map(|q| q.map(|x| x as f32)).collect());

@@ -6,9 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use curvenet_core::{
-    Adjustment, BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions,
-};
+use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{AdjustmentData, MeshData};
 
@@ -18,33 +16,37 @@ use common::{curvenet, repo, stderr};
 
 const ADJUSTED: &str = "fixtures/shots/hand_adjusted/shot.usda";
 
-/// The adjusted shot read and bound in-process, independently of the bake's code.
+/// The adjusted shot read and bound in-process through core's `Deformer`,
+/// independently of the bake's stage handling.
 struct Reference {
     stage: Stage,
     mesh: MeshData,
     adjustments: Vec<Vec<AdjustmentData>>,
-    binding: Binding,
+    deformer: Deformer,
 }
 
 impl Reference {
     fn new(input: &Path) -> Self {
         let stage = Stage::open(input).unwrap();
         let mesh = stage.deformed_meshes().unwrap().remove(0);
-        let topology =
-            PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
         let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
-        let layouts: Vec<CurvenetLayout> = nets
+        let curvenets: Vec<CurvenetInput> = nets
             .iter()
-            .map(|n| {
-                let c = Curvenet::new(&n.splines, &n.pool).unwrap();
-                let options = SamplingOptions::default().with_density(n.sample_density);
-                CurvenetLayout::new(&c, &topology, &mesh.projection_points, &options).unwrap()
-            })
+            .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
             .collect();
-        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-        let binding = Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default()).unwrap();
+        let deformer = Deformer::new(&DeformerInput {
+            mesh: MeshInput {
+                face_vertex_counts: &mesh.face_vertex_counts,
+                face_vertex_indices: &mesh.face_vertex_indices,
+                projection_points: &mesh.projection_points,
+            },
+            curvenets: &curvenets,
+            blend_shapes: Vec::new(),
+            options: DeformerOptions::default(),
+        })
+        .unwrap();
         let adjustments = nets.iter().map(|n| stage.curvenet_adjustments(n).unwrap()).collect();
-        Self { stage, mesh, adjustments, binding }
+        Self { stage, mesh, adjustments, deformer }
     }
 
     /// Frame `t` with the stage's adjustments (`adjusted`) or without.
@@ -54,9 +56,9 @@ impl Reference {
             true => self.stage.adjustments_at(&self.adjustments, Some(t)).unwrap(),
             false => Vec::new(),
         };
-        let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
-        let input = FrameInput { posed: &[None], rest: Some(&rest), adjustments: &adjustments };
-        self.binding.deform(&input, &mut self.binding.workspace(), &mut out, None).unwrap();
+        let mut out = vec![[0.0; 3]; self.deformer.n_vertices()];
+        let frame = Frame { posed: &[None], rest: Some(&rest), adjustments: &adjustments, ..Default::default() };
+        self.deformer.frame(&frame, &mut out, None).unwrap();
         out
     }
 }

@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 
@@ -44,27 +44,39 @@ struct Reference {
     stage: Stage,
     mesh: MeshData,
     nets: Vec<CurvenetData>,
-    binding: Binding,
+    deformer: Deformer,
 }
 
 impl Reference {
     fn new(input: &Path) -> Self {
         let stage = Stage::open(input).unwrap();
         let mesh = stage.deformed_meshes().unwrap().remove(0);
-        let topology =
-            PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
         let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
-        let layouts: Vec<CurvenetLayout> = nets
+        let n = mesh.projection_points.len();
+        let blend_shapes = mesh
+            .blend_shapes
             .iter()
-            .map(|n| {
-                let c = Curvenet::new(&n.splines, &n.pool).unwrap();
-                let options = SamplingOptions::default().with_density(n.sample_density);
-                CurvenetLayout::new(&c, &topology, &mesh.projection_points, &options).unwrap()
+            .map(|s| {
+                let ib = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
+                BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib).unwrap()
             })
             .collect();
-        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-        let binding = Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default()).unwrap();
-        Self { stage, mesh, nets, binding }
+        let curvenets: Vec<CurvenetInput> = nets
+            .iter()
+            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
+            .collect();
+        let deformer = Deformer::new(&DeformerInput {
+            mesh: MeshInput {
+                face_vertex_counts: &mesh.face_vertex_counts,
+                face_vertex_indices: &mesh.face_vertex_indices,
+                projection_points: &mesh.projection_points,
+            },
+            curvenets: &curvenets,
+            blend_shapes,
+            options: DeformerOptions::default(),
+        })
+        .unwrap();
+        Self { stage, mesh, nets, deformer }
     }
 
     /// The frame as the core deforms it: posed pools, the rest pose when the
@@ -75,23 +87,11 @@ impl Reference {
         let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| p.as_deref()).collect();
         let rest =
             (!self.mesh.rest_sample_times.is_empty()).then(|| self.stage.rest_points(&self.mesh, Some(t)).unwrap());
-        let n = self.binding.n_vertices();
-        let mut out = vec![[0.0; 3]; n];
-        let mut gradients = vec![[0.0; 9]; n];
-        let mut ws = self.binding.workspace();
-        let frame = FrameInput { posed: &posed, rest: rest.as_deref(), ..Default::default() };
-        self.binding.deform(&frame, &mut ws, &mut out, Some(&mut gradients)).unwrap();
-        let shapes = self
-            .mesh
-            .blend_shapes
-            .iter()
-            .map(|s| {
-                let ib = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
-                BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib).unwrap()
-            })
-            .collect();
         let weights = self.stage.blend_shape_weights(&self.mesh, Some(t)).unwrap();
-        BlendShapes::new(n, shapes).add_deformed(&weights, &gradients, &mut out).unwrap();
+        let mut out = vec![[0.0; 3]; self.deformer.n_vertices()];
+        let frame =
+            Frame { posed: &posed, rest: rest.as_deref(), blend_shape_weights: Some(&weights), ..Default::default() };
+        self.deformer.frame(&frame, &mut out, None).unwrap();
         out
     }
 }

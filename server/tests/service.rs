@@ -7,7 +7,7 @@ use std::time::Duration;
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
 use curvenet_server::{AppState, BakeJob, Baker, Code, Config, app};
@@ -32,37 +32,34 @@ pub fn request_from_stage(path: &std::path::Path) -> BindingRequest {
 }
 
 /// The same binding computed in-process.
-fn reference(req: &BindingRequest) -> Binding {
-    let n = req.projection_points.len();
-    let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, n).unwrap();
-    let layouts: Vec<CurvenetLayout> = req
+fn reference(req: &BindingRequest) -> Deformer {
+    let curvenets: Vec<CurvenetInput> = req
         .curvenets
         .iter()
-        .map(|c| {
-            let net = Curvenet::new(&c.splines, &c.pool).unwrap();
-            CurvenetLayout::new(
-                &net,
-                &mesh,
-                &req.projection_points,
-                &SamplingOptions::default().with_density(c.sample_density),
-            )
-            .unwrap()
-        })
+        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
         .collect();
-    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    Binding::new(&mesh, &req.projection_points, &refs, &BindOptions::default()).unwrap()
+    Deformer::new(&DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &req.face_vertex_counts,
+            face_vertex_indices: &req.face_vertex_indices,
+            projection_points: &req.projection_points,
+        },
+        curvenets: &curvenets,
+        blend_shapes: Vec::new(),
+        options: DeformerOptions::default(),
+    })
+    .unwrap()
 }
 
-fn hand_reference() -> &'static Binding {
-    static B: OnceLock<Binding> = OnceLock::new();
+fn hand_reference() -> &'static Deformer {
+    static B: OnceLock<Deformer> = OnceLock::new();
     B.get_or_init(|| reference(hand()))
 }
 
-fn deform_reference(b: &Binding, pool: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
+fn deform_reference(b: &Deformer, pool: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
     let posed = [pool];
-    let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &posed, rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
+    b.frame(&Frame { posed: &posed, ..Default::default() }, &mut out, None).unwrap();
     out
 }
 
@@ -850,4 +847,71 @@ fn the_readme_error_table_is_the_code_table() {
         assert_eq!(code.as_str(), name);
         assert_eq!(code.status().as_u16(), *status, "{name}");
     }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn error_bodies_name_the_elements_in_details() {
+    let app = app(state_with(test_config()));
+    let body = |b: &Bytes| serde_json::from_slice::<Value>(b).unwrap();
+
+    // A curvenet far from the surface: the sample, its spline and curvenet.
+    let mut far = hand().clone();
+    for p in &mut far.curvenets[0].pool {
+        p[2] += 100.0;
+    }
+    let (status, _, b) = send(&app, post_json("/v1/bindings", &far)).await;
+    let v = body(&b);
+    assert_eq!((status, v["code"].as_str()), (StatusCode::UNPROCESSABLE_ENTITY, Some("binding_failed")), "{v}");
+    let d = &v["details"];
+    assert_eq!(d["curvenet"], 0, "{v}");
+    assert!(
+        d["spline"].is_u64() && d["sample"].is_u64() && d["position"].as_array().is_some_and(|p| p.len() == 3),
+        "{v}"
+    );
+    assert!(d.get("face").is_none() && d.get("frame").is_none(), "absent fields are omitted: {v}");
+
+    // A spline whose control points coincide: its curvenet (from the
+    // deformer's wrapping) and the spline, the message numbered as the request.
+    let mut zero = hand().clone();
+    let s0 = zero.curvenets[0].splines[0];
+    let p0 = zero.curvenets[0].pool[s0[0] as usize];
+    for k in s0 {
+        zero.curvenets[0].pool[k as usize] = p0;
+    }
+    let (status, _, b) = send(&app, post_json("/v1/bindings", &zero)).await;
+    let v = body(&b);
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("curvenets[0]: "), "{v}");
+    assert_eq!(v["details"]["curvenet"], 0, "{v}");
+
+    // Coincident corners of a face: invalid_mesh naming the face and both vertices.
+    let mut flat = hand().clone();
+    let (a, c) = (flat.face_vertex_indices[0], flat.face_vertex_indices[1]);
+    flat.projection_points[c as usize] = flat.projection_points[a as usize];
+    let (status, _, b) = send(&app, post_json("/v1/bindings", &flat)).await;
+    let v = body(&b);
+    assert_eq!((status, v["code"].as_str()), (StatusCode::UNPROCESSABLE_ENTITY, Some("invalid_mesh")), "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("mesh: "), "{v}");
+    assert_eq!(v["details"]["face"], 0, "{v}");
+    assert_eq!(v["details"]["vertices"], json!([a, c]), "{v}");
+
+    // A batch: the frame and the curvenet of a short pool, the counts.
+    let id = post_binding(&app, hand()).await.binding_id;
+    let pool = &hand().curvenets[0].pool;
+    let frames = json!({"frames": [{}, {"posed": [&pool[1..]]}]});
+    let (status, _, b) = send(&app, post_json(&format!("/v1/bindings/{id}/frames:batch"), &frames)).await;
+    let v = body(&b);
+    assert_eq!((status, v["code"].as_str()), (StatusCode::UNPROCESSABLE_ENTITY, Some("count_mismatch")), "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("frames[1]: "), "{v}");
+    assert_eq!(
+        v["details"],
+        json!({"frame": 1, "curvenet": 0, "what": "posed", "expected": pool.len(), "got": pool.len() - 1}),
+        "{v}"
+    );
+
+    // An error about no element has no details at all.
+    let (status, _, b) = send(&app, get("/v1/bindings/nope")).await;
+    let v = body(&b);
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(v.get("details").is_none(), "{v}");
 }

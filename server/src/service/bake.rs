@@ -1,6 +1,7 @@
-//! `POST /v1/bake`: path checks against the configured roots, then the bake
-//! itself through a [`Baker`] the command line supplies (the bake command
-//! lives in the binary, `cli::bake`; tests supply their own).
+//! Bakes: `POST /v1/bake`: path checks against the configured roots, then
+//! the bake itself through a [`Baker`] the command line supplies (the bake
+//! command lives in the binary, `cli::bake`; tests supply their own), holding
+//! a solve permit.
 //!
 //! A path is allowed when, after resolving `..` and symlinks, it lies in a
 //! root. So is every layer the stage opens: the baker opens the stage with a
@@ -10,8 +11,16 @@
 
 use std::path::{Component, Path, PathBuf};
 use std::sync::Arc;
+use std::time::Instant;
+
+use axum::Json;
+use axum::extract::State;
+use axum::response::{IntoResponse, Response};
+use curvenet_schema::wire::{BakeRequest, BakeResponse, ErrorBody};
 
 use crate::error::{Code, ServiceError};
+use crate::extract::{Admission, ContentType, JsonOnly, SizedBody, parse_json};
+use crate::state::{AppState, blocking};
 
 /// One bake, with checked, canonical paths.
 #[derive(Debug, Clone)]
@@ -104,4 +113,56 @@ pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErr
         return Err(forbidden(path, roots));
     }
     Ok(resolved)
+}
+
+/// Bakes a shot stage on the server's file system (inside the bake roots).
+#[utoipa::path(post, path = "/v1/bake", tag = "bake", security(("bearer" = [])),
+    request_body = BakeRequest,
+    responses(
+        (status = 200, description = "Baked", body = BakeResponse),
+        (status = 400, description = "malformed_json", body = ErrorBody),
+        (status = 403, description = "path_forbidden: a path outside the bake roots", body = ErrorBody),
+        (status = 404, description = "stage_not_found", body = ErrorBody),
+        (status = 408, description = "request_timeout: the body stalled or arrived too slowly", body = ErrorBody),
+        (status = 413, description = "payload_too_large", body = ErrorBody),
+        (status = 415, description = "unsupported_media_type", body = ErrorBody),
+        (status = 422, description = "bake_failed", body = ErrorBody),
+        (status = 503, description = "saturated or unavailable (Retry-After)", body = ErrorBody),
+    ))]
+pub(crate) async fn bake(
+    State(state): State<AppState>,
+    _: ContentType<JsonOnly>,
+    SizedBody(bytes): SizedBody,
+) -> Result<Response, ServiceError> {
+    let req: BakeRequest = parse_json(&bytes)?;
+    let roots = state.inner.bake_roots.clone();
+    let job = blocking(move || {
+        Ok(BakeJob {
+            stage: check_stage(&req.stage, &roots)?,
+            output: check_output(&req.output, &roots)?,
+            frames: req.frames,
+            roots,
+        })
+    })
+    .await?;
+    let baker =
+        state.inner.baker.clone().ok_or_else(|| ServiceError::internal("this server was started without a baker"))?;
+    let admission = Admission::one(&state).await?;
+    let t = Instant::now();
+    let job2 = job.clone();
+    blocking(move || {
+        let _admission = admission;
+        baker(&job2).map_err(|f| match f {
+            BakeFailure::Input(m) => ServiceError::new(Code::BakeFailed, m),
+            BakeFailure::Retry(m) => ServiceError::new(Code::Unavailable, m),
+            BakeFailure::Forbidden(m) => ServiceError::new(Code::PathForbidden, m),
+        })
+    })
+    .await?;
+    Ok(Json(BakeResponse {
+        stage: job.stage.display().to_string(),
+        output: job.output.display().to_string(),
+        elapsed_ms: t.elapsed().as_secs_f64() * 1e3,
+    })
+    .into_response())
 }

@@ -69,7 +69,7 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
     let mut plans: Vec<Vec<Planned>> = Vec::with_capacity(headers.len());
     let mut total_bytes = 0usize;
     for (f, h) in headers.iter().enumerate() {
-        let ctx = |e: ServiceError| if batch { e.context(&format!("frames[{f}]")) } else { e };
+        let ctx = |e: ServiceError| if batch { e.in_frame(f) } else { e };
         let plan = plan_frame(h, expected).map_err(ctx)?;
         total_bytes += plan.iter().map(|p| p.rows * p.kind.width() * 4).sum::<usize>();
         plans.push(plan);

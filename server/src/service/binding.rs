@@ -1,15 +1,15 @@
-//! `BindingRequest` → validated core inputs → `curvenet_core::Binding`.
+//! `BindingRequest` → validated plain data (`curvenet_core::DeformerInput`)
+//! → `curvenet_core::Deformer::new`, the one way a binding is made.
 //! Everything cheap is checked before the expensive steps (the curvenet
 //! analysis, the cut and the factorisation); every message names the array
-//! and index it refers to.
-
-use std::sync::Mutex;
-use std::time::Instant;
+//! and index it refers to, and the details name them by field.
 
 use curvenet_core::binding::CutOptions;
-use curvenet_core::binding::surface::Surface;
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{BindOptions, BindWarning, Binding, Cancel, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::{
+    BindOptions, BindWarning, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput,
+    PolyMesh,
+};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, SegmentAt, Warning};
 
 use crate::cache::{Entry, Key, hex};
@@ -86,15 +86,22 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
             return Err(ServiceError::new(
                 Code::InvalidParameter,
                 format!("curvenets[{k}].sample_density must be finite and positive, got {}", c.sample_density),
-            ));
+            )
+            .detail(|d| {
+                d.curvenet = Some(k as u32);
+                d.what = Some("sample_density".into());
+            }));
         }
         if c.pool.is_empty() {
-            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].pool is empty")));
+            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].pool is empty"))
+                .detail(|d| (d.curvenet, d.what) = (Some(k as u32), Some("pool".into()))));
         }
         if c.splines.is_empty() {
-            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].splines is empty")));
+            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].splines is empty"))
+                .detail(|d| (d.curvenet, d.what) = (Some(k as u32), Some("splines".into()))));
         }
-        check_points(&c.pool, &format!("curvenets[{k}].pool"))?;
+        check_points(&c.pool, &format!("curvenets[{k}].pool"))
+            .map_err(|e| e.detail(|d| d.curvenet = Some(k as u32)))?;
         for (s, spline) in c.splines.iter().enumerate() {
             if let Some(&v) = spline.iter().find(|&&v| v as usize >= c.pool.len()) {
                 return Err(ServiceError::new(
@@ -103,7 +110,12 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
                         "curvenets[{k}].splines[{s}] refers to control point {v}, but the pool has {}",
                         c.pool.len()
                     ),
-                ));
+                )
+                .detail(|d| {
+                    d.curvenet = Some(k as u32);
+                    d.spline = Some(s as u32);
+                    d.control_point = Some(v);
+                }));
             }
         }
     }
@@ -153,14 +165,21 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
 /// Checks points: every coordinate finite (`non_finite`) and at most
 /// [`MAX_COORDINATE`] in magnitude (`invalid_parameter`), naming `what` and the index.
 pub fn check_points(points: &[[f64; 3]], what: &str) -> Result<(), ServiceError> {
+    let at = |i: usize| {
+        // `posed[0]` is the array `posed` (the curvenet is the caller's detail).
+        let array = what.split('[').next().unwrap_or(what).to_string();
+        move |d: &mut curvenet_schema::wire::ErrorDetails| (d.what, d.index) = (Some(array), Some(i))
+    };
     match points.iter().position(|p| !p.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE)) {
         None => Ok(()),
         Some(i) if points[i].iter().all(|x| x.is_finite()) => Err(ServiceError::new(
             Code::InvalidParameter,
             format!("{what}[{i}] = {:?} is larger than {MAX_COORDINATE:e} in magnitude", points[i]),
-        )),
+        )
+        .detail(at(i))),
         Some(i) => {
-            Err(ServiceError::new(Code::NonFinite, format!("{what}[{i}] has a non-finite coordinate {:?}", points[i])))
+            Err(ServiceError::new(Code::NonFinite, format!("{what}[{i}] has a non-finite coordinate {:?}", points[i]))
+                .detail(at(i)))
         }
     }
 }
@@ -181,10 +200,11 @@ pub fn predict(req: &BindingRequest, limits: &WorkLimits) -> Result<Prediction, 
     crate::limits::check(req, mean_edge_length, limits)
 }
 
-/// Builds the entry for `req` (already validated): the curvenet analysis,
-/// the binding, the blend shapes. CPU-heavy: run it off the async runtime.
-/// `cancel` stops it (`Error::Cancelled`, flagged on the returned error);
-/// `keep` workspaces are budgeted in the entry's size (one per solve thread).
+/// Builds the entry for `req` (already validated): its blend shapes, then
+/// the deformer (`curvenet_core::Deformer::new`: the curvenet analysis and
+/// the binding). CPU-heavy: run it off the async runtime. `cancel` stops it
+/// (`Error::Cancelled`, flagged on the returned error); `keep` workspaces
+/// are budgeted in the entry's size (one per solve thread).
 pub fn build(
     req: &BindingRequest,
     key: Key,
@@ -193,12 +213,9 @@ pub fn build(
     cancel: Cancel,
     keep: usize,
 ) -> Result<Entry, ServiceError> {
-    let t0 = Instant::now();
     let n = req.projection_points.len();
-    let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, n)
-        .map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
     // Blend shapes first: cheap, and a bad shape should not cost a factorisation.
-    let shapes = req
+    let blend_shapes = req
         .blend_shapes
         .iter()
         .enumerate()
@@ -208,51 +225,46 @@ pub fn build(
                 .map_err(|e| ServiceError::core(e, Phase::Bind).context(&format!("blend_shapes[{k}]")))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let n_shapes = shapes.len();
-    let shapes = (!shapes.is_empty()).then(|| BlendShapes::new(n, shapes));
-
-    // One surface (validation, face planes, closest-point BVH) serves the
-    // curvenets' sampling and the binding.
-    let t_surface = Instant::now();
-    let surface =
-        Surface::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
-    let surface_ms = t_surface.elapsed().as_secs_f64() * 1e3;
-    let stopped = |e| ServiceError::core(e, Phase::Bind);
-    cancel.check("the curvenet analysis").map_err(stopped)?;
-    let layouts = req
+    let n_shapes = blend_shapes.len();
+    // Measured on the shapes as built here: the deformer keeps copies of
+    // them, no larger (a copy's arrays have no spare capacity).
+    let shapes_bytes = if n_shapes == 0 {
+        0
+    } else {
+        blend_shapes.capacity() * std::mem::size_of::<BlendShape>()
+            + blend_shapes.iter().map(BlendShape::heap_bytes).sum::<usize>()
+    };
+    let curvenets: Vec<CurvenetInput<'_>> = req
         .curvenets
         .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let ctx = format!("curvenets[{k}]");
-            let net =
-                Curvenet::new(&c.splines, &c.pool).map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))?;
-            let sampling = SamplingOptions::default().with_density(c.sample_density);
-            CurvenetLayout::with_closest_point(&net, surface.closest_points(), surface.mean_edge_length(), &sampling)
-                .map_err(|e| ServiceError::core(e, Phase::Bind).context(&ctx))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    // The surface is timed on its own (`surface_ms`), not as analysis.
-    let analysis_ms = t0.elapsed().as_secs_f64() * 1e3 - surface_ms;
-    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::with_surface(surface, &refs, &options.bind_options(cancel), surface_ms)
-        .map_err(|e| ServiceError::core(e, Phase::Bind))?;
-    drop(layouts);
-    let total_ms = t0.elapsed().as_secs_f64() * 1e3;
+        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
+        .collect();
+    let input = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &req.face_vertex_counts,
+            face_vertex_indices: &req.face_vertex_indices,
+            projection_points: &req.projection_points,
+        },
+        curvenets: &curvenets,
+        blend_shapes,
+        options: DeformerOptions::default().with_bind(options.bind_options(cancel)),
+    };
+    let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;
+    drop(input);
 
     // What the entry holds, measured (see `curvenet_core::heap`): the
     // binding, the shapes, the projection pose, and the workspaces frames
     // reuse (one per solve thread; the first is made now and measured).
-    let workspace = binding.workspace();
+    let b = deformer.binding();
+    let workspace_bytes = deformer.prepare_workspace();
     let keep = keep.max(1);
-    let size_bytes = (binding.heap_bytes()
+    let size_bytes = (b.heap_bytes()
         + std::mem::size_of::<Binding>()
-        + shapes.as_ref().map_or(0, BlendShapes::heap_bytes)
-        + req.projection_points.len() * std::mem::size_of::<[f64; 3]>()
-        + keep * workspace.heap_bytes()
+        + shapes_bytes
+        + n * std::mem::size_of::<[f64; 3]>()
+        + keep * workspace_bytes
         + ENTRY_OVERHEAD) as u64;
-    let s = binding.stats();
-    let t = binding.timings();
+    let t = deformer.timings();
     let response = BindingResponse {
         binding_id: hex(&key),
         topology_hash: hex(&topology),
@@ -261,21 +273,16 @@ pub fn build(
         control_points: req.curvenets.iter().map(|c| c.pool.len()).collect(),
         blend_shapes: n_shapes,
         size_bytes,
-        stats: BindingStats::from(&s),
-        timings: BindingTimings::new(analysis_ms, &t, total_ms),
-        warnings: binding.warnings().iter().map(warning).collect(),
+        stats: BindingStats::from(&b.stats()),
+        timings: BindingTimings::new(t.analysis_ms, &t.binding, t.total_ms),
+        warnings: b.warnings().iter().map(warning).collect(),
     };
     Ok(Entry {
         id: response.binding_id.clone(),
         topology_hash: response.topology_hash.clone(),
-        binding,
-        shapes,
-        n_shapes,
-        projection_points: req.projection_points.clone(),
+        deformer,
         response,
         size_bytes,
-        keep_workspaces: keep,
-        workspaces: Mutex::new(vec![workspace]),
     })
 }
 

@@ -12,10 +12,9 @@
 //! give one id) and, only when there are any, the blend shapes. Every array
 //! is preceded by its length, so no two requests encode alike.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
-use curvenet_core::blend_shapes::BlendShapes;
-use curvenet_core::{Binding, Workspace};
+use curvenet_core::{Binding, Deformer};
 use curvenet_schema::wire::{BindingRequest, BindingResponse};
 use moka::future::Cache;
 use moka::notification::RemovalCause;
@@ -28,39 +27,34 @@ use crate::metrics::Metrics;
 /// A binding id: blake3 of the binding's content.
 pub type Key = [u8; 32];
 
-/// One cached binding and what a frame needs besides it.
+/// One cached binding: its deformer (`curvenet_core::Deformer`: the
+/// binding, the blend shapes, the projection pose and the frame workspaces)
+/// and the answer that described it.
 pub struct Entry {
     pub id: String,
     pub topology_hash: String,
-    pub binding: Binding,
-    /// `None` when the binding has no blend shapes.
-    pub shapes: Option<BlendShapes>,
-    pub n_shapes: usize,
-    /// The projection pose (the base of the `before` blend-shape mode).
-    pub projection_points: Vec<[f64; 3]>,
+    pub deformer: Deformer,
     /// The answer to the post that computed it (`cached` false).
     pub response: BindingResponse,
-    /// Bytes the entry holds, measured when it was built (counted against the cache).
+    /// Bytes the entry holds, measured when it was built (counted against the
+    /// cache): the deformer with one workspace per solve thread.
     pub size_bytes: u64,
-    /// Workspaces kept for reuse (budgeted in `size_bytes`): one per solve thread.
-    pub keep_workspaces: usize,
-    /// Workspaces of finished frames, reused by the next ones.
-    pub workspaces: Mutex<Vec<Workspace>>,
 }
 
 impl Entry {
-    /// A workspace for one frame: reused from earlier frames when one is free.
-    pub fn take_workspace(&self) -> Workspace {
-        let reused = self.workspaces.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        reused.unwrap_or_else(|| self.binding.workspace())
+    /// The binding (cut-mesh, factor, analysed curvenets).
+    pub fn binding(&self) -> &Binding {
+        self.deformer.binding()
     }
 
-    /// Returns a workspace for later frames (at most `keep_workspaces` are kept).
-    pub fn give_workspace(&self, ws: Workspace) {
-        let mut pool = self.workspaces.lock().unwrap_or_else(|e| e.into_inner());
-        if pool.len() < self.keep_workspaces {
-            pool.push(ws);
-        }
+    /// The mesh in its projection pose.
+    pub fn projection_points(&self) -> &[[f64; 3]] {
+        self.deformer.projection_points()
+    }
+
+    /// Blend shapes of the binding (the length of a frame's weights).
+    pub fn n_shapes(&self) -> usize {
+        self.deformer.blend_shapes().len()
     }
 }
 

@@ -1,15 +1,27 @@
-//! One frame: parsed (JSON or binary) into a [`Frame`], checked against the
-//! binding (counts, finiteness, topology), solved with a reused workspace,
-//! blend shapes applied, and encoded back.
+//! Frames: `POST /v1/bindings/{id}/frames` (and the parsing, validation and
+//! encoding `frames:batch` shares, batches.rs). A frame is parsed (JSON or
+//! binary.rs) into a [`Frame`], checked against the binding (counts,
+//! finiteness, topology), solved by `curvenet_core::Deformer::frame` (its
+//! workspace pool, blend shapes in either mode, the rest pose) and encoded
+//! back in the request's form.
 
+use std::sync::Arc;
 use std::time::Instant;
 
-use curvenet_core::FrameInput;
-use curvenet_schema::wire::{BlendShapeMode, FrameRequest, FrameResponse};
+use axum::body::Bytes;
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use curvenet_schema::wire::{BlendShapeMode, ErrorBody, FrameBatchResponse, FrameRequest, FrameResponse};
 
+use crate::binary;
 use crate::binding::{MAX_WEIGHT, check_points};
 use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
+use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
+use crate::openapi::BinaryFrames;
+use crate::solve::{Numbering, solve_frames};
+use crate::state::AppState;
 
 /// A frame's input, in f64, whatever its wire form.
 #[derive(Debug, Clone, Default)]
@@ -53,8 +65,123 @@ impl Solved {
     }
 }
 
+/// Deforms one frame of a cached binding (JSON, or the binary form).
+#[utoipa::path(post, path = "/v1/bindings/{id}/frames", tag = "frames", security(("bearer" = [])),
+    params(("id" = String, Path, description = "binding id")),
+    request_body(content(
+        (FrameRequest = "application/json"),
+        (BinaryFrames = "application/octet-stream"),
+    )),
+    responses(
+        (status = 200, description = "The deformed frame, in the request's form", content(
+            (FrameResponse = "application/json"),
+            (BinaryFrames = "application/octet-stream"),
+        )),
+        (status = 400, description = "malformed_json, malformed_binary", body = ErrorBody),
+        (status = 404, description = "unknown_binding: post the binding again", body = ErrorBody),
+        (status = 408, description = "request_timeout: the body stalled or arrived too slowly", body = ErrorBody),
+        (status = 409, description = "topology_changed", body = ErrorBody),
+        (status = 413, description = "payload_too_large", body = ErrorBody),
+        (status = 415, description = "unsupported_media_type", body = ErrorBody),
+        (status = 422, description = "count_mismatch, non_finite, index_out_of_range, invalid_parameter, degenerate_pose (details: curvenet, spline, segment, control_point, what, index)", body = ErrorBody),
+        (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
+    ))]
+pub(crate) async fn post_frames(
+    State(state): State<AppState>,
+    ContentType(form, _): ContentType<JsonOrBinary>,
+    CachedBinding(entry): CachedBinding,
+    Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
+) -> Result<Response, ServiceError> {
+    answer(&state, entry, form, bytes, admission, false).await
+}
+
+/// Parses, solves and encodes the frames of one request (`batch`: the
+/// `frames:batch` form), through the one solve helper.
+pub(crate) async fn answer(
+    state: &AppState,
+    entry: Arc<Entry>,
+    form: Form,
+    bytes: Bytes,
+    admission: Admission,
+    batch: bool,
+) -> Result<Response, ServiceError> {
+    let max_batch_bytes = state.config().max_batch_bytes;
+    let numbering = if batch { Numbering::Batch { max_bytes: max_batch_bytes } } else { Numbering::One };
+    let out = solve_frames(
+        state,
+        admission,
+        entry,
+        numbering,
+        move |entry| parse(entry, form, &bytes, batch, max_batch_bytes),
+        move |_, solved| encode(form, batch, solved),
+    )
+    .await?;
+    Ok(match form {
+        Form::Json => ([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], out).into_response(),
+        Form::Binary => ([(header::CONTENT_TYPE, HeaderValue::from_static(binary::CONTENT_TYPE))], out).into_response(),
+    })
+}
+
+/// Parses the frames of a request (on the solve pool; checked afterwards by [`validate`]).
+fn parse(
+    entry: &Entry,
+    form: Form,
+    bytes: &[u8],
+    batch: bool,
+    max_batch_bytes: u64,
+) -> Result<Vec<Frame>, ServiceError> {
+    let vertices = entry.binding().n_vertices();
+    let max_frames = crate::bounded::max_frames(max_batch_bytes, vertices);
+    Ok(match form {
+        Form::Json if batch => match crate::bounded::frames::<FrameRequest>(bytes, max_frames) {
+            Ok(f) => f.into_iter().map(Frame::from).collect(),
+            Err(crate::bounded::BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, vertices)),
+            Err(crate::bounded::BatchError::Malformed(e)) => {
+                return Err(ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")));
+            }
+            Err(crate::bounded::BatchError::NotBatch) => {
+                return Err(ServiceError::new(
+                    Code::MalformedJson,
+                    "the JSON body is invalid: frames:batch takes {\"frames\": [...]} and nothing else",
+                ));
+            }
+        },
+        Form::Json => vec![parse_json::<FrameRequest>(bytes)?.into()],
+        Form::Binary => {
+            let b = entry.binding();
+            let pools: Vec<usize> = (0..b.n_curvenets()).map(|k| b.n_control_points(k)).collect();
+            let expected = binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), max_frames };
+            let (frames, is_batch) = binary::parse(bytes, &expected)?;
+            if is_batch != batch {
+                return Err(ServiceError::new(
+                    Code::MalformedBinary,
+                    if batch {
+                        "frames:batch takes a header {\"frames\": [...]} listing each frame's arrays"
+                    } else {
+                        "this endpoint takes one frame's header; send {\"frames\": [...]} to frames:batch"
+                    },
+                ));
+            }
+            frames
+        }
+    })
+}
+
+/// Encodes solved frames in the request's form.
+fn encode(form: Form, batch: bool, solved: Vec<Solved>) -> Result<Vec<u8>, ServiceError> {
+    match (form, batch) {
+        (Form::Binary, _) => Ok(binary::encode(&solved, batch)),
+        (Form::Json, false) => serde_json::to_vec(&solved.into_iter().next().map(Solved::into_response))
+            .map_err(ServiceError::internal_from),
+        (Form::Json, true) => {
+            serde_json::to_vec(&FrameBatchResponse { frames: solved.into_iter().map(Solved::into_response).collect() })
+                .map_err(ServiceError::internal_from)
+        }
+    }
+}
+
 /// Checks `frame` against the binding: topology hash, counts, finiteness.
-/// Messages name the array and index (`posed[1][17]`).
+/// Messages name the array and index (`posed[1][17]`), details the same.
 pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
     if let Some(h) = &frame.topology_hash
         && !h.eq_ignore_ascii_case(&entry.topology_hash)
@@ -67,7 +194,15 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
             ),
         ));
     }
-    let b = &entry.binding;
+    let b = entry.binding();
+    let count = |what: &str, expected: usize, got: usize| {
+        let what = what.to_string();
+        move |d: &mut curvenet_schema::wire::ErrorDetails| {
+            d.what = Some(what);
+            d.expected = Some(expected);
+            d.got = Some(got);
+        }
+    };
     if !frame.posed.is_empty() {
         if frame.posed.len() != b.n_curvenets() {
             return Err(ServiceError::new(
@@ -77,7 +212,8 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
                     frame.posed.len(),
                     b.n_curvenets()
                 ),
-            ));
+            )
+            .detail(count("posed", b.n_curvenets(), frame.posed.len())));
         }
         for (k, pool) in frame.posed.iter().enumerate() {
             if let Some(pool) = pool {
@@ -89,9 +225,11 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
                             pool.len(),
                             b.n_control_points(k)
                         ),
-                    ));
+                    )
+                    .detail(count("posed", b.n_control_points(k), pool.len()))
+                    .detail(|d| d.curvenet = Some(k as u32)));
                 }
-                check_points(pool, &format!("posed[{k}]"))?;
+                check_points(pool, &format!("posed[{k}]")).map_err(|e| e.detail(|d| d.curvenet = Some(k as u32)))?;
             }
         }
     }
@@ -100,72 +238,64 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
             return Err(ServiceError::new(
                 Code::CountMismatch,
                 format!("rest has {} points, but the mesh has {} vertices", rest.len(), b.n_vertices()),
-            ));
+            )
+            .detail(count("rest", b.n_vertices(), rest.len())));
         }
         check_points(rest, "rest")?;
     }
     if let Some(w) = &frame.weights {
-        if w.len() != entry.n_shapes {
+        let n_shapes = entry.n_shapes();
+        if w.len() != n_shapes {
             return Err(ServiceError::new(
                 Code::CountMismatch,
-                format!(
-                    "blend_shape_weights has {} weights, but the binding has {} blend shapes",
-                    w.len(),
-                    entry.n_shapes
-                ),
-            ));
+                format!("blend_shape_weights has {} weights, but the binding has {} blend shapes", w.len(), n_shapes),
+            )
+            .detail(count("blend_shape_weights", n_shapes, w.len())));
         }
+        let at = |i: usize| {
+            move |d: &mut curvenet_schema::wire::ErrorDetails| {
+                d.what = Some("blend_shape_weights".into());
+                d.index = Some(i);
+            }
+        };
         if let Some(i) = w.iter().position(|x| !x.is_finite()) {
-            return Err(ServiceError::new(Code::NonFinite, format!("blend_shape_weights[{i}] is {}", w[i])));
+            return Err(
+                ServiceError::new(Code::NonFinite, format!("blend_shape_weights[{i}] is {}", w[i])).detail(at(i))
+            );
         }
         if let Some(i) = w.iter().position(|x| x.abs() > MAX_WEIGHT) {
             return Err(ServiceError::new(
                 Code::InvalidParameter,
                 format!("blend_shape_weights[{i}] is {}, larger than {MAX_WEIGHT:e} in magnitude", w[i]),
-            ));
+            )
+            .detail(at(i)));
         }
     }
     Ok(())
 }
 
-/// Solves a validated frame. CPU-heavy: run it on the solve pool.
+/// Solves a validated frame through `curvenet_core::Deformer::frame`.
+/// CPU-heavy: run it on the solve pool (see solve.rs).
 pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     let t0 = Instant::now();
-    let b = &entry.binding;
-    let n = b.n_vertices();
-    let weights = frame.weights.as_deref().filter(|w| w.iter().any(|&x| x != 0.0));
-    let shapes = entry.shapes.as_ref().zip(weights);
-    let posed: Vec<Option<&[[f64; 3]]>> = if frame.posed.is_empty() {
-        vec![None; b.n_curvenets()]
-    } else {
-        frame.posed.iter().map(|p| p.as_deref()).collect()
+    let n = entry.binding().n_vertices();
+    let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
+    let input = curvenet_core::Frame {
+        posed: &posed,
+        rest: frame.rest.as_deref(),
+        blend_shape_weights: frame.weights.as_deref(),
+        blend_shape_mode: match frame.mode {
+            BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
+            BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
+        },
+        adjustments: &[],
     };
-    // The `before` mode sculpts the rest pose (the projection pose when the frame has none).
-    let sculpted_rest = match (shapes, frame.mode) {
-        (Some((s, w)), BlendShapeMode::Before) => {
-            let mut rest = frame.rest.clone().unwrap_or_else(|| entry.projection_points.clone());
-            s.add_to(w, &mut rest).map_err(|e| ServiceError::core(e, Phase::Frame))?;
-            Some(rest)
-        }
-        _ => None,
-    };
-    let rest = sculpted_rest.as_deref().or(frame.rest.as_deref());
-    let after = shapes.filter(|_| frame.mode == BlendShapeMode::After);
     let mut points = vec![[0.0; 3]; n];
-    let mut gradients = (frame.gradients || after.is_some()).then(|| vec![[0.0; 9]; n]);
-    let mut ws = entry.take_workspace();
-    let r = b.deform(
-        &FrameInput { posed: &posed, rest, ..Default::default() },
-        &mut ws,
-        &mut points,
-        gradients.as_deref_mut(),
-    );
-    entry.give_workspace(ws);
-    r.map_err(|e| ServiceError::core(e, Phase::Frame))?;
-    if let (Some((s, w)), Some(g)) = (after, gradients.as_deref()) {
-        s.add_deformed(w, g, &mut points).map_err(|e| ServiceError::core(e, Phase::Frame))?;
-    }
-    let gradients = gradients.filter(|_| frame.gradients);
+    let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
+    entry
+        .deformer
+        .frame(&input, &mut points, gradients.as_deref_mut())
+        .map_err(|e| ServiceError::core(e, Phase::Frame))?;
     finite_in_f32(&points, "points")?;
     if let Some(g) = &gradients {
         finite_in_f32(g, "gradients")?;
@@ -185,6 +315,10 @@ fn finite_in_f32<const N: usize>(values: &[[f64; N]], what: &str) -> Result<(), 
                 "the frame's result is not finite: {what}[{i}] = {:?} overflows f32 (the pose, rest pose or blend-shape weights are too extreme)",
                 values[i]
             ),
-        )),
+        )
+        .detail(|d| {
+            d.what = Some(what.to_string());
+            d.vertex = Some(i as u32);
+        })),
     }
 }

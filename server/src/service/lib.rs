@@ -5,13 +5,18 @@
 //! One frame, from the body to the solver and back:
 //!
 //! ```text
-//! routes.rs    read the body (limit), look the binding up in the cache, take a solve permit
-//! frames.rs    parse (JSON or binary.rs), validate against the binding, solve on the pool, encode
-//! cache.rs     content hash → Arc<Entry> (moka, weighed in bytes, LRU)
-//! binding.rs   BindingRequest → validated core inputs → curvenet_core::Binding
-//! error.rs     the error type and its code → status table
-//! viewer.rs    the browser viewer at /viewer (assets in viewer/) and its read-only JSON
+//! routes.rs    the router and its layers (request id, token, declared length)
+//! frames.rs    the handler: its extractors (extract.rs: content type, the cached binding,
+//!              the sized body, a solve permit), parsing (JSON or binary.rs), validation, encoding
+//! solve.rs     the one solve helper: on the solve pool, validate → Deformer::frame → metrics
+//! core/src/deformer.rs   Deformer::frame: workspace pool, rest pose, blend shapes, Binding::deform
 //! ```
+//!
+//! One file per resource: bindings.rs (binding.rs builds the request's
+//! `curvenet_core::Deformer`, cache.rs caches it by content hash), frames.rs,
+//! batches.rs, deform.rs, bake.rs, operations.rs (health, readiness,
+//! metrics, OpenAPI), viewer.rs; error.rs holds the error type, its code →
+//! status table and the core error → code table.
 //!
 //! `app(state)` is the whole router, so tests drive it with `oneshot`;
 //! `run(listener, state, shutdown)` (serve.rs) serves it over TCP with the
@@ -19,11 +24,15 @@
 //! limits.rs predicts and bounds a binding's work, jobs.rs cancels it.
 
 mod bake;
+mod batches;
 mod binary;
 mod binding;
+mod bindings;
 mod bounded;
 mod cache;
+mod deform;
 mod error;
+mod extract;
 mod frames;
 #[cfg(test)]
 mod fuzz_tests;
@@ -31,8 +40,10 @@ mod jobs;
 mod limits;
 mod metrics;
 mod openapi;
+mod operations;
 mod routes;
 mod serve;
+mod solve;
 mod state;
 mod viewer;
 

@@ -4,13 +4,13 @@
 use curvenet_schema::wire::{
     BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
     BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest,
-    DeformResponse, ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
-    InbetweenSpec, SegmentAt, Warning,
+    DeformResponse, ErrorBody, ErrorDetails, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse,
+    HealthResponse, InbetweenSpec, SegmentAt, SegmentId, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
 
-use crate::{routes, viewer};
+use crate::{bake, batches, bindings, deform, frames, operations, viewer};
 
 /// A binary frame body (`application/octet-stream`): u32 LE header length,
 /// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
@@ -39,21 +39,23 @@ impl Modify for BearerAuth {
         title = "curvenet",
         description = "Curve-driven character mesh deformation (profile curves, de Goes et al. 2022) as a service. \
                        Bindings are cached by content hash; frames deform a cached binding. Errors are \
-                       `{code, message}` with stable snake_case codes. When the server has a token, every route \
+                       `{code, message, details}` with stable snake_case codes; `details` names the elements \
+                       the error is about (curvenet, spline, segment, sample, control_point, face, vertex, frame, ...), \
+                       absent fields omitted. When the server has a token, every route \
                        but /healthz and /readyz needs `Authorization: Bearer <token>`."
     ),
     paths(
-        routes::create_binding,
-        routes::get_binding,
-        routes::delete_binding,
-        routes::post_frames,
-        routes::post_frames_batch,
-        routes::deform,
-        routes::bake,
-        routes::healthz,
-        routes::readyz,
-        routes::metrics,
-        routes::openapi_json,
+        bindings::create_binding,
+        bindings::get_binding,
+        bindings::delete_binding,
+        frames::post_frames,
+        batches::post_frames_batch,
+        deform::deform,
+        bake::bake,
+        operations::healthz,
+        operations::readyz,
+        operations::metrics,
+        operations::openapi_json,
         viewer::stages,
         viewer::stage,
         viewer::stage_frame,
@@ -63,7 +65,7 @@ impl Modify for BearerAuth {
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
         BindingTimings, Warning, SegmentAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
-        DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, HealthResponse, BinaryArray,
+        DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, ErrorDetails, SegmentId, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
         viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,

@@ -417,7 +417,7 @@ async fn solve_frame(state: &AppState, entry: Arc<Entry>, frame: Frame) -> Resul
             let solved = frames::solve(&entry, &frame)?;
             metrics.solve_seconds.record(solved.solve_ms / 1e3);
             metrics.frames_solved.increment(1);
-            let b = &entry.binding;
+            let b = entry.binding();
             let poses = |posed: &[Option<&[[f64; 3]]>]| {
                 (0..b.n_curvenets())
                     .map(|k| {
@@ -475,7 +475,7 @@ fn flat_frames(frames: &[[ScaledFrame; 2]]) -> Vec<f32> {
 /// The viewer's picture of a binding: the mesh, the cut-mesh with its edge
 /// kinds, the curvenets with their marked samples and neutral frames.
 pub fn data(entry: &Entry) -> ViewerData {
-    let b: &Binding = &entry.binding;
+    let b: &Binding = entry.binding();
     let mesh = b.surface().mesh();
     let mut triangles = Vec::new();
     let mut triangle_face = Vec::new();
@@ -486,7 +486,7 @@ pub fn data(entry: &Entry) -> ViewerData {
         }
     }
     let mesh_view = MeshView {
-        points: flat(&entry.projection_points),
+        points: flat(entry.projection_points()),
         triangles,
         triangle_face,
         edges: mesh.edges().into_iter().flat_map(|(a, c)| [a, c]).collect(),

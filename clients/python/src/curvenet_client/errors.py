@@ -10,7 +10,7 @@ newer server never makes the client fail to raise something sensible.
 Families::
 
     CurvenetError
-    ├── BadInputError        400, 405, 409, 413, 415, 422: fix the request; a retry fails the same way
+    ├── BadInputError        400, 405, 408, 409, 413, 415, 422: fix the request; a retry fails the same way
     │   └── PayloadTooLargeError   413 payload_too_large
     ├── NotFoundError        404
     │   └── UnknownBindingError    404 unknown_binding (the client re-posts the binding itself)
@@ -57,8 +57,10 @@ class CurvenetError(Exception):
             carried no code, or ``transport``/``protocol`` for client-side errors.
         message: the service's message (names the offending array and index).
         status: the HTTP status, or ``None`` when there was no answer.
-        details: the error body's ``details`` object (``{}`` when absent), e.g.
-            ``{"curvenet": 0, "spline": 3}``.
+        details: the error body's ``details`` object (``{}`` when absent): the
+            elements the error names, by field, e.g. ``{"curvenet": 0,
+            "spline": 3, "segment": 7}`` or, in a batch, ``{"frame": 2, ...}``
+            (server/README.md, "Errors", lists the fields).
         request_id: the answer's ``x-request-id`` (the server logs under it).
         retry_after: the answer's ``Retry-After`` in seconds, when it had one.
     """
@@ -83,7 +85,7 @@ class CurvenetError(Exception):
 
 
 class BadInputError(CurvenetError):
-    """The request is wrong (400, 405, 409, 413, 415, 422): malformed JSON or
+    """The request is wrong (400, 405, 408, 409, 413, 415, 422): malformed JSON or
     binary framing, counts that disagree, a non-finite number, an invalid mesh
     or curvenet, a binding that cannot be made. Not worth retrying."""
 
@@ -143,6 +145,8 @@ CODE_FAMILIES: dict[str, type[CurvenetError]] = {
     "binding_failed": BadInputError,
     "degenerate_pose": BadInputError,
     "unsupported": BadInputError,
+    "limit_exceeded": BadInputError,
+    "request_timeout": BadInputError,
     "unknown_binding": UnknownBindingError,
     "topology_changed": BadInputError,
     "payload_too_large": PayloadTooLargeError,

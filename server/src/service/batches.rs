@@ -1,0 +1,45 @@
+//! Batches: `POST /v1/bindings/{id}/frames:batch`, many frames of one
+//! binding in one request, solved in parallel (as many at once as the
+//! request could take solve permits) and answered in request order. Parsed,
+//! validated, solved and encoded as frames.rs does, through the one solve
+//! helper (solve.rs), which also bounds the answer (`--max-batch-bytes`).
+
+use axum::extract::State;
+use axum::response::Response;
+use curvenet_schema::wire::{ErrorBody, FrameBatchRequest, FrameBatchResponse};
+
+use crate::error::ServiceError;
+use crate::extract::{Admitted, CachedBinding, ContentType, JsonOrBinary, SizedBody};
+use crate::openapi::BinaryFrames;
+use crate::state::AppState;
+
+/// Deforms many frames of one binding in parallel; answers in frame order.
+#[utoipa::path(post, path = "/v1/bindings/{id}/frames:batch", tag = "frames", security(("bearer" = [])),
+    params(("id" = String, Path, description = "binding id")),
+    request_body(content(
+        (FrameBatchRequest = "application/json"),
+        (BinaryFrames = "application/octet-stream"),
+    )),
+    responses(
+        (status = 200, description = "The frames, in request order", content(
+            (FrameBatchResponse = "application/json"),
+            (BinaryFrames = "application/octet-stream"),
+        )),
+        (status = 400, description = "malformed_json, malformed_binary", body = ErrorBody),
+        (status = 404, description = "unknown_binding", body = ErrorBody),
+        (status = 408, description = "request_timeout: the body stalled or arrived too slowly", body = ErrorBody),
+        (status = 409, description = "topology_changed", body = ErrorBody),
+        (status = 413, description = "payload_too_large", body = ErrorBody),
+        (status = 415, description = "unsupported_media_type", body = ErrorBody),
+        (status = 422, description = "A frame is invalid (the message starts with frames[i], details.frame is i), or limit_exceeded: the answer would be larger than --max-batch-bytes", body = ErrorBody),
+        (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
+    ))]
+pub(crate) async fn post_frames_batch(
+    State(state): State<AppState>,
+    ContentType(form, _): ContentType<JsonOrBinary>,
+    CachedBinding(entry): CachedBinding,
+    Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
+) -> Result<Response, ServiceError> {
+    let admission = admission.widen(&state);
+    crate::frames::answer(&state, entry, form, bytes, admission, true).await
+}

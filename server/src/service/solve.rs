@@ -1,0 +1,115 @@
+//! The one solve helper: every route that solves frames (frames, batches,
+//! deform) goes through [`solve_frames`], which runs on the solve pool
+//! holding the request's [`Admission`]: read the frames → validate each
+//! against the binding → (batches) check the answer's size → solve each
+//! with `curvenet_core::Deformer::frame` (a batch's frames as many at once
+//! as it holds permits) → record the metrics → build the answer.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::cache::Entry;
+use crate::error::{Code, ServiceError};
+use crate::extract::Admission;
+use crate::frames::{self, Frame, Solved};
+use crate::state::AppState;
+
+/// How the frames of a request are named in its errors.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum Numbering {
+    /// One frame, named by nothing (`/frames`).
+    One,
+    /// One frame, named `name: ` (`/deform`: `frame`).
+    Named(&'static str),
+    /// A batch: `frames[i]: ` and `details.frame`; its answer may hold at
+    /// most `max_bytes` of f32 data (`--max-batch-bytes`).
+    Batch { max_bytes: u64 },
+}
+
+impl Numbering {
+    fn name(self, i: usize, e: ServiceError) -> ServiceError {
+        match self {
+            Numbering::One => e,
+            Numbering::Named(name) => e.context(name),
+            Numbering::Batch { .. } => e.in_frame(i),
+        }
+    }
+}
+
+/// Solves the frames `read` returns from `entry`, on the solve pool, and
+/// answers what `answer` makes of them (also on the pool: encoding a large
+/// batch is work too). `admission` is held until the answer is built.
+pub(crate) async fn solve_frames<T: Send + 'static>(
+    state: &AppState,
+    admission: Admission,
+    entry: Arc<Entry>,
+    numbering: Numbering,
+    read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
+    answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
+) -> Result<T, ServiceError> {
+    let metrics = state.inner.metrics.clone();
+    let (out, n, solve_ms) = state
+        .on_pool(move || {
+            let parallel = admission.parallel();
+            let _admission = admission;
+            let frames = read(&entry)?;
+            for (i, f) in frames.iter().enumerate() {
+                frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
+            }
+            if let Numbering::Batch { max_bytes } = numbering {
+                check_batch_size(&entry, &frames, max_bytes)?;
+            }
+            let solved: Vec<Solved> = if parallel > 1 && frames.len() > 1 {
+                let chunk = frames.len().div_ceil(parallel).max(1);
+                let entry = &entry;
+                let results: Vec<Result<Solved, ServiceError>> = frames
+                    .par_chunks(chunk)
+                    .enumerate()
+                    .flat_map_iter(|(c, part)| {
+                        part.iter()
+                            .enumerate()
+                            .map(move |(j, f)| frames::solve(entry, f).map_err(|e| numbering.name(c * chunk + j, e)))
+                    })
+                    .collect();
+                results.into_iter().collect::<Result<_, _>>()?
+            } else {
+                frames
+                    .iter()
+                    .enumerate()
+                    .map(|(i, f)| frames::solve(&entry, f).map_err(|e| numbering.name(i, e)))
+                    .collect::<Result<_, _>>()?
+            };
+            for s in &solved {
+                metrics.solve_seconds.record(s.solve_ms / 1e3);
+            }
+            metrics.frames_solved.increment(solved.len() as u64);
+            let solve_ms: f64 = solved.iter().map(|s| s.solve_ms).sum();
+            let n = solved.len();
+            Ok((answer(&entry, solved)?, n, solve_ms))
+        })
+        .await?;
+    let span = tracing::Span::current();
+    span.record("solve_ms", solve_ms);
+    span.record("frames", n);
+    Ok(out)
+}
+
+/// Refuses a batch whose answer would hold more than `max` bytes of f32
+/// data (frames × vertices × 12, 48 with gradients) before solving it: the
+/// answer, unlike the request, is not bounded by the body limit.
+fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64) -> Result<(), ServiceError> {
+    let v = entry.binding().n_vertices() as u64;
+    let bytes: u64 = frames.iter().map(|f| v * if f.gradients { 48 } else { 12 }).sum();
+    if bytes > max {
+        return Err(ServiceError::new(
+            Code::LimitExceeded,
+            format!(
+                "the batch's answer would hold {bytes} bytes ({} frames of {v} vertices), more than this server's \
+                 limit of {max} (--max-batch-bytes, CURVENET_MAX_BATCH_BYTES); split it",
+                frames.len()
+            ),
+        ));
+    }
+    Ok(())
+}
