@@ -5,7 +5,7 @@ use curvenet_schema::wire::{
     BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
     BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest,
     DeformResponse, ErrorBody, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse,
-    InbetweenSpec, SegmentAt, Warning,
+    InbetweenSpec, SegmentAt, SegmentId, TouchAt, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
@@ -57,16 +57,18 @@ impl Modify for BearerAuth {
         viewer::stages,
         viewer::stage,
         viewer::stage_frame,
+        viewer::stage_refusal,
         viewer::viewer_data,
         viewer::viewer_frame,
     ),
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
-        BindingTimings, Warning, SegmentAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
+        BindingTimings, Warning, SegmentAt, SegmentId, TouchAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
         DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
         viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
+        viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight,
     )),
     modifiers(&BearerAuth),
     tags(
