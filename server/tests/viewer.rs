@@ -327,6 +327,7 @@ async fn a_refused_stage_is_drawn_with_the_element_its_error_names() {
     // and the far sample of spline 3 highlighted.
     let r = json_of(&app, get(&format!("/v1/viewer/stages/{i_far}/refusal"))).await;
     assert_eq!(r["code"], "binding_failed");
+    assert_eq!(r["stage"]["mesh"], "/Hand/Mesh");
     assert!(r["message"].as_str().unwrap().contains("from the surface"), "{}", r["message"]);
     assert_eq!(r["mesh"]["triangulation"], "surface");
     assert_eq!(floats(&r["mesh"]["points"]).len(), 3 * hand().projection_points.len());

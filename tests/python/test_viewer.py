@@ -592,6 +592,8 @@ def test_a_refused_binding_shows_the_mesh_the_curvenet_and_the_element_its_error
     refusal = _get(f"{problem_server}/v1/viewer/stages/0/refusal")
     assert named["spline"] == str(refusal["highlight"]["splines"][0]) and named["sample"] == str(refusal["highlight"]["sample"])
     assert page.eval("document.body.dataset.framed") == "sample"
+    overlay = page.eval("document.getElementById('overlay').textContent")
+    assert overlay.startswith("/Hand/Mesh\nbinding refused: curvenet 0 sample"), overlay
     assert page.eval("getComputedStyle(document.getElementById('problem')).display") != "none"
     _, shot = page.screenshot()
     assert _clay(shot).mean() > 0.01, f"the mesh covers only {_clay(shot).mean():.1%} of the canvas"

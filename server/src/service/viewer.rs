@@ -247,8 +247,8 @@ pub struct CurvenetView {
 /// error names.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct ViewerRefusal {
-    #[serde(flatten)]
-    pub info: ViewerStageInfo,
+    /// The stage (its `mesh` is the prim's path; the field `mesh` below is the geometry).
+    pub stage: ViewerStageInfo,
     /// The error code the service answers for this refusal (`binding_failed`,
     /// `invalid_mesh`, `invalid_curvenet`, ...).
     pub code: String,
@@ -814,7 +814,7 @@ fn refusal(index: usize, stage: &ViewerStage) -> Option<ViewerRefusal> {
         })
         .collect();
     Some(ViewerRefusal {
-        info: info(index, stage),
+        stage: info(index, stage),
         code: answered.code.as_str().to_string(),
         message: answered.message,
         diagonal: curvenet_core::mesh::bounding_box_diagonal(points),

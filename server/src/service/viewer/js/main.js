@@ -804,7 +804,7 @@ function showRefusal(source, refusal) {
   view.dyn = null;
   view.dynKey = '';
   view.source = source;
-  view.stageInfo = refusal;
+  view.stageInfo = refusal.stage;
   view.times = [];
   view.data = data;
   view.frames = new Map();
