@@ -269,7 +269,10 @@ impl BindingTimings {
     }
 }
 
-/// Something the binding did that the user should know about.
+/// Something the binding did that the user should know about. Besides the
+/// code and the message, the elements it is about, in fields that are
+/// absent when they do not apply (clients that read only `code` and
+/// `message` keep working).
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
     /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split`,
@@ -279,6 +282,98 @@ pub struct Warning {
     /// The segment a `segment_detour` warning is about.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub segment: Option<SegmentAt>,
+    /// The points a `curves_touch` warning names (the first few of
+    /// `count`): the two segments and where their surface paths meet.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub touches: Vec<TouchAt>,
+    /// The input faces a `faces_split` warning names.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub faces: Vec<u32>,
+    /// The mesh component an `untouched_component` warning names (the
+    /// numbering of the binding's connected components).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub component: Option<usize>,
+    /// How many places the warning is about, when it lists only some
+    /// (`curves_touch`: every meeting point; `touches` shows the first few).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub count: Option<usize>,
+}
+
+/// A curvenet segment as users number it: the curvenet (in the binding
+/// request's order), the spline within it, the segment within the spline
+/// (from the spline's control point 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct SegmentId {
+    pub curvenet: u32,
+    pub spline: u32,
+    pub segment: u32,
+}
+
+impl From<curvenet_core::error::SegmentRef> for SegmentId {
+    fn from(s: curvenet_core::error::SegmentRef) -> Self {
+        SegmentId { curvenet: s.curvenet, spline: s.spline, segment: s.segment }
+    }
+}
+
+/// Two segments whose surface paths meet where they share no knot, and
+/// that point in the projection pose (a `curves_touch` warning).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct TouchAt {
+    pub segment: SegmentId,
+    pub other: SegmentId,
+    pub position: [f64; 3],
+}
+
+impl From<&curvenet_core::BindWarning> for Warning {
+    /// The one conversion from core's warnings to the wire: the code, the
+    /// message core writes, and the elements as fields.
+    fn from(w: &curvenet_core::BindWarning) -> Self {
+        use curvenet_core::BindWarning as W;
+        let mut out = Warning {
+            code: String::new(),
+            message: w.to_string(),
+            segment: None,
+            touches: Vec::new(),
+            faces: Vec::new(),
+            component: None,
+            count: None,
+        };
+        out.code = match w {
+            W::UntouchedComponent { component, .. } => {
+                out.component = Some(*component);
+                "untouched_component"
+            }
+            W::IslandsRemoved { .. } => "islands_removed",
+            W::DegenerateCutFaces { .. } => "degenerate_cut_faces",
+            W::FacesSplit { faces } => {
+                out.faces = faces.clone();
+                "faces_split"
+            }
+            W::CurvesTouch { count, examples } => {
+                out.count = Some(*count);
+                out.touches = examples
+                    .iter()
+                    .map(|(s, o, p)| TouchAt { segment: (*s).into(), other: (*o).into(), position: *p })
+                    .collect();
+                "curves_touch"
+            }
+            W::SegmentDetour { segment, t, position, path_length, segment_length } => {
+                out.segment = Some(SegmentAt {
+                    curvenet: segment.curvenet,
+                    spline: segment.spline,
+                    segment: segment.segment,
+                    t: *t,
+                    position: *position,
+                    path_length: path_length.is_finite().then_some(*path_length),
+                    segment_length: *segment_length,
+                });
+                "segment_detour"
+            }
+            _ => "other",
+        }
+        .to_string();
+        out
+    }
 }
 
 /// A curvenet segment and where it is: the curvenet (in the binding
@@ -493,14 +588,6 @@ pub struct ErrorDetails {
     /// The place, in the projection pose.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub position: Option<[f64; 3]>,
-}
-
-/// A curvenet segment: the curvenet, the spline within it, the segment within the spline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
-pub struct SegmentId {
-    pub curvenet: u32,
-    pub spline: u32,
-    pub segment: u32,
 }
 
 /// `/healthz` and `/readyz`.

@@ -9,6 +9,8 @@ use std::sync::Arc;
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
+use curvenet_core::PolyMesh;
+use curvenet_core::binding::Surface;
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
@@ -74,9 +76,11 @@ fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_is_self_contained_and_open_without_the_token() {
     let app = app(state(Some("secret")));
-    for (path, kind) in
-        [("/viewer", "text/html"), ("/viewer/viewer.js", "text/javascript"), ("/viewer/viewer.css", "text/css")]
-    {
+    let modules = ["main", "api", "math", "camera", "gl", "highlight"];
+    let mut assets = vec![("/viewer".to_string(), "text/html"), ("/viewer/viewer.css".to_string(), "text/css")];
+    assets.extend(modules.iter().map(|m| (format!("/viewer/js/{m}.js"), "text/javascript")));
+    for (path, kind) in &assets {
+        let path = path.as_str();
         let (status, headers, body) = send(&app, get(path)).await;
         assert_eq!(status, StatusCode::OK, "{path}");
         assert!(headers[header::CONTENT_TYPE].to_str().unwrap().starts_with(kind), "{path}");
@@ -85,10 +89,22 @@ async fn the_page_is_self_contained_and_open_without_the_token() {
         let text = String::from_utf8(body.to_vec()).unwrap();
         // Nothing is fetched from anywhere else: no absolute URLs at all.
         assert!(!text.contains("://"), "{path} names an absolute URL");
+        // Every module a module imports is served (relative, beside it).
+        for line in text.lines().filter(|l| l.starts_with("import ")) {
+            let from = line.rsplit("from '").next().and_then(|r| r.split('\'').next()).unwrap_or("");
+            let name = from.strip_prefix("./").and_then(|n| n.strip_suffix(".js"));
+            assert!(name.is_some_and(|n| modules.contains(&n)), "{path}: `{line}` imports no served module");
+        }
     }
     let (_, _, page) = send(&app, get("/viewer")).await;
     let page = String::from_utf8(page.to_vec()).unwrap();
-    assert!(page.contains(r#"src="viewer/viewer.js""#) && page.contains(r#"href="viewer/viewer.css""#));
+    assert!(
+        page.contains(r#"<script type="module" src="viewer/js/main.js">"#)
+            && page.contains(r#"href="viewer/viewer.css""#)
+    );
+    let (status, _, body) = send(&app, get("/viewer/js/nothing.js")).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(serde_json::from_slice::<Value>(&body).unwrap()["code"], "not_found");
     // The data needs the token.
     let (status, _, body) = send(&app, get("/v1/viewer/stages")).await;
     assert_eq!(status, StatusCode::UNAUTHORIZED);
@@ -116,7 +132,14 @@ async fn viewer_data_agrees_with_the_binding_and_frames_solve() {
     assert_eq!(faces.iter().max().map(|&f| f as usize + 1), Some(n("mesh_faces")));
     assert_eq!(ints(&mesh["triangles"]).len(), 3 * faces.len());
     let corners: usize = req.face_vertex_counts.iter().map(|&c| c as usize).sum();
-    assert_eq!(faces.len(), corners - 2 * req.face_vertex_counts.len(), "a fan of c - 2 triangles per face");
+    assert_eq!(faces.len(), corners - 2 * req.face_vertex_counts.len(), "c - 2 triangles per face");
+    // They are core's own triangulation of the faces, the one the binding works in.
+    let poly = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, req.projection_points.len()).unwrap();
+    let surface = Surface::new(&poly, &req.projection_points).unwrap();
+    let (core_triangles, core_faces): (Vec<[u32; 3]>, Vec<u32>) = surface.triangles().unzip();
+    assert_eq!(ints(&mesh["triangles"]), core_triangles.iter().flatten().map(|&v| v as u64).collect::<Vec<_>>());
+    assert_eq!(faces, core_faces.iter().map(|&f| f as u64).collect::<Vec<_>>());
+    assert_eq!(mesh["triangulation"], "surface");
 
     // The cut-mesh: every count of the binding is visible in it.
     let cut = &data["cut"];
@@ -254,4 +277,100 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
     ] {
         assert!(doc["paths"].get(path).is_some(), "{path} missing");
     }
+}
+
+fn no_frames() -> FrameSource {
+    Arc::new(|_| Ok(FrameRequest::default()))
+}
+
+fn open(state: &AppState, req: BindingRequest) -> usize {
+    state.open_in_viewer(ViewerStage::new(
+        "refused.usda".into(),
+        "/Hand/Mesh".into(),
+        vec!["/Hand/Curvenet".into()],
+        vec![0.0],
+        req,
+        no_frames(),
+    ))
+}
+
+/// A stage whose binding is refused is drawn anyway: `/refusal` sends the
+/// mesh, the curvenets and the element core's error names, with its
+/// geometry and a box to frame.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_refused_stage_is_drawn_with_the_element_its_error_names() {
+    let state = state(None);
+    let good = hand();
+    // A curve drawn far from the surface: a control point lifted by half
+    // the diagonal (the binding refuses samples beyond 5%).
+    let mut far = good.clone();
+    let lo = far.projection_points.iter().fold([f64::MAX; 3], |a, p| std::array::from_fn(|k| a[k].min(p[k])));
+    let hi = far.projection_points.iter().fold([f64::MIN; 3], |a, p| std::array::from_fn(|k| a[k].max(p[k])));
+    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    let lifted = far.curvenets[0].splines[3][1] as usize; // a handle of spline 3
+    far.curvenets[0].pool[lifted][2] -= 0.5 * diag;
+    // A degenerate mesh: a vertex moved onto its neighbour along face 10's first side.
+    let mut degenerate = good.clone();
+    let start: usize = degenerate.face_vertex_counts[..10].iter().map(|&c| c as usize).sum();
+    let (a, b) = (degenerate.face_vertex_indices[start], degenerate.face_vertex_indices[start + 1]);
+    degenerate.projection_points[a as usize] = degenerate.projection_points[b as usize];
+    let (i_far, i_degenerate, i_good) = (open(&state, far), open(&state, degenerate), open(&state, good));
+    let app = app(state);
+
+    // The stage itself is refused, as before.
+    let (status, _, body) = send(&app, get(&format!("/v1/viewer/stages/{i_far}"))).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    let refused: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(refused["code"], "binding_failed", "{refused}");
+
+    // Its refusal: the mesh in core's triangulation, the curvenet's samples,
+    // and the far sample of spline 3 highlighted.
+    let r = json_of(&app, get(&format!("/v1/viewer/stages/{i_far}/refusal"))).await;
+    assert_eq!(r["code"], "binding_failed");
+    assert_eq!(r["stage"]["mesh"], "/Hand/Mesh");
+    assert!(r["message"].as_str().unwrap().contains("from the surface"), "{}", r["message"]);
+    assert_eq!(r["mesh"]["triangulation"], "surface");
+    assert_eq!(floats(&r["mesh"]["points"]).len(), 3 * hand().projection_points.len());
+    assert!(!ints(&r["mesh"]["triangles"]).is_empty());
+    assert!(!floats(&r["curvenets"][0]["samples"]).is_empty(), "the curvenet was sampled");
+    let h = &r["highlight"];
+    assert_eq!(h["element"], "sample", "{h}");
+    assert_eq!(h["curvenet"], 0);
+    let spline = h["splines"][0].as_u64().unwrap() as usize;
+    assert!(hand().curvenets[0].splines[spline].contains(&(lifted as u32)) || spline == 3, "{h}");
+    let marker = floats(&h["points"]);
+    assert_eq!(marker.len(), 3);
+    assert!(!floats(&h["lines"]).is_empty(), "the spline is drawn");
+    let bounds = floats(&h["bounds"]);
+    assert!((0..3).all(|k| bounds[k] <= marker[k] + 1e-6 && marker[k] <= bounds[k + 3] + 1e-6));
+    // The marked sample is far from the surface (so from every vertex too).
+    let nearest = hand()
+        .projection_points
+        .iter()
+        .map(|p| (0..3).map(|k| (p[k] - marker[k]).powi(2)).sum::<f64>().sqrt())
+        .fold(f64::MAX, f64::min);
+    assert!(nearest > 0.05 * diag, "the marked sample is {nearest} from the mesh, the diagonal is {diag}");
+
+    // A degenerate mesh: no surface, so a fan per face; the face and its
+    // coincident vertices are named.
+    let (status, _, body) = send(&app, get(&format!("/v1/viewer/stages/{i_degenerate}"))).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY);
+    let answered: Value = serde_json::from_slice(&body).unwrap();
+    let r = json_of(&app, get(&format!("/v1/viewer/stages/{i_degenerate}/refusal"))).await;
+    assert_eq!(r["code"], answered["code"], "the refusal carries the service's code: {r}");
+    assert!(r["message"].as_str().unwrap().contains("coincident"), "{r}");
+    assert_eq!(r["mesh"]["triangulation"], "fan");
+    let h = &r["highlight"];
+    assert_eq!(h["element"], "faces", "{h}");
+    let faces = ints(&h["faces"]);
+    assert!(!faces.is_empty());
+    assert!(ints(&h["vertices"]).contains(&(a as u64)) && ints(&h["vertices"]).contains(&(b as u64)), "{h}");
+    assert!(!ints(&h["triangles"]).is_empty(), "the named face is filled");
+    assert!(h.get("bounds").is_some());
+
+    // A stage that binds has no refusal.
+    let (status, _, body) = send(&app, get(&format!("/v1/viewer/stages/{i_good}/refusal"))).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "{}", String::from_utf8_lossy(&body));
+    let doc = json_of(&app, get("/openapi.json")).await;
+    assert!(doc["paths"].get("/v1/viewer/stages/{index}/refusal").is_some());
 }

@@ -13,6 +13,14 @@ port, no websocket) loads the page and waits for the first frame. Then:
 - clicking the hand picks a face, and the panel lists that face's cut-faces;
 - the page loaded nothing from anywhere but the server.
 
+And on stages made here (a second server): a curvenet drawn far from the
+surface and a mesh with coincident vertices are refused, yet the page
+draws the mesh and the curvenet with the element the error names in the
+highlight colour and framed; on a plate with a trench, a line bridging the
+trench (`segment_detour`) and two lines whose projections cross
+(`curves_touch`) bind, and their segments are highlighted; clicking the
+warning frames its segment.
+
 Chromium comes from scripts/chromium (installs the `chromium` package where
 missing; CURVENET_CHROMIUM names one). The screenshot goes to
 target/viewer/viewer.png; with CURVENET_UPDATE_SCREENSHOT=1 also to
@@ -31,6 +39,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import urllib.error
 import urllib.request
 import zlib
 
@@ -257,13 +266,14 @@ class Page:
 # ------------------------------------------------------------------ fixtures
 
 
-@pytest.fixture(scope="module")
-def server():
+def _serve(*stages):
+    """`curvenet serve` opening `stages`; yields its URL."""
     binary = _binary()
     assert binary.exists(), f"{binary} is missing: build it first (cargo build --ignore-rust-version) or set CURVENET_BIN"
     env = {k: v for k, v in os.environ.items() if not k.startswith("CURVENET_")}
+    opens = [a for st in stages for a in ("--open-stage", str(st))]
     proc = subprocess.Popen(
-        [str(binary), "serve", "--addr", "127.0.0.1:0", "--drain-timeout", "5", "--open-stage", str(STAGE)],
+        [str(binary), "serve", "--addr", "127.0.0.1:0", "--drain-timeout", "5", *opens],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env,
     )
     timer = threading.Timer(60, proc.kill)
@@ -273,25 +283,37 @@ def server():
     assert first.startswith("listening on http://"), f"unexpected first line {first!r}"
     url = first.split("listening on ")[1].strip()
     assert second.strip() == f"viewer: {url}/viewer", second
-    yield url
-    proc.kill()
-    proc.wait()
+    try:
+        yield url
+    finally:
+        proc.kill()
+        proc.wait()
 
 
 @pytest.fixture(scope="module")
-def page(server):
+def server():
+    yield from _serve(STAGE)
+
+
+@pytest.fixture(scope="module")
+def tools():
     chromium = _chromium()
     profile = tempfile.mkdtemp(prefix="curvenet-chromium-")
     log = open(os.path.join(profile, "chromium.log"), "wb")
     tools = DevTools(chromium, profile, log)
     try:
-        p = Page(tools)
-        p.call("Page.navigate", {"url": f"{server}/viewer"})
-        yield p
+        yield tools
     finally:
         tools.close()
         log.close()
         shutil.rmtree(profile, ignore_errors=True)
+
+
+@pytest.fixture(scope="module")
+def page(server, tools):
+    p = Page(tools)
+    p.call("Page.navigate", {"url": f"{server}/viewer"})
+    yield p
 
 
 def _get(url):
@@ -417,4 +439,217 @@ def test_viewer_draws_the_shot_counts_match_and_the_slider_moves_it(server, page
     # Everything came from the server, and the page raised nothing.
     foreign = [u for u in page.requested_urls() if not u.startswith(server) and not u.startswith("data:")]
     assert not foreign, f"the page loaded from elsewhere: {foreign}"
+    assert not page.errors(), page.errors()
+
+
+# ------------------------------------------------------------------ refused bindings and warnings
+
+VIOLET = np.array([158, 92, 255])  # the highlight colour (highlight.js)
+
+
+def _violet(pixels):
+    """Pixels in the highlight colour (drawn opaque, or blended over the surface)."""
+    r, g, b = (pixels[:, :, k].astype(int) for k in range(3))
+    return (b > 180) & (r > 110) & (g < 130) & (b - g > 80) & (r - g > 30)
+
+
+def _clay(pixels):
+    r, g, b = (pixels[:, :, k].astype(int) for k in range(3))
+    return (r > 90) & (r - b > 15) & (abs(r - g) < 40) & (b > 40)
+
+
+def _curve(pixels):
+    r, g, b = (pixels[:, :, k].astype(int) for k in range(3))
+    return (r > 200) & (g > 150) & (b < 110)
+
+
+def _hand_override(path, edit):
+    """A layer over the hand_1k4 fixture: `edit(stage)` authors its opinions."""
+    from pxr import Usd
+    layer_stage = Usd.Stage.CreateNew(str(path))
+    layer_stage.GetRootLayer().subLayerPaths.append(str(ROOT / "fixtures" / "hand" / "hand_1k4.usda"))
+    edit(layer_stage)
+    layer_stage.GetRootLayer().Save()
+    return path
+
+
+def _far_curve(stage):
+    """Lowers a handle of spline 3 by half the hand's diagonal: its samples are far from the surface."""
+    from pxr import UsdGeom, Vt
+    curves = UsdGeom.PrimvarsAPI(stage.GetPrimAtPath("/Hand/Curvenet"))
+    pv = curves.GetPrimvar("curvenet:cv")
+    cv = np.array(pv.Get(), dtype=np.float64)
+    idx = np.array(pv.GetIndices())
+    points = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/Hand/Mesh")).GetPointsAttr().Get())
+    diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    lifted = int(idx[4 * 3 + 1])
+    cv[lifted, 2] -= 0.5 * diag
+    pv.Set(Vt.Vec3fArray.FromNumpy(cv.astype(np.float32)))
+    UsdGeom.BasisCurves(stage.GetPrimAtPath("/Hand/Curvenet")).GetPointsAttr().Set(
+        Vt.Vec3fArray.FromNumpy(cv[idx].astype(np.float32)))
+
+
+def _coincident_vertices(stage):
+    """Moves the first corner of face 10 onto its second: zero-length side, a refused mesh."""
+    from pxr import UsdGeom, Vt
+    mesh = UsdGeom.Mesh(stage.GetPrimAtPath("/Hand/Mesh"))
+    counts = np.array(mesh.GetFaceVertexCountsAttr().Get())
+    indices = np.array(mesh.GetFaceVertexIndicesAttr().Get())
+    points = np.array(mesh.GetPointsAttr().Get(), dtype=np.float32)
+    start = int(counts[:10].sum())
+    a, b = int(indices[start]), int(indices[start + 1])
+    points[a] = points[b]
+    mesh.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(points))
+
+
+def _trench_plate(path):
+    """A plate over [0, 1]² (100 quads a side) with a trench 0.04 wide and
+    0.3 deep along x = 0.5, and one curvenet of three lines: one 0.002 above
+    the plate across the trench (its samples over the trench project onto
+    the two walls: a detour), and two at heights 0.01 and 0.03 whose
+    projections cross at (0.25, 0.75) (curves that touch)."""
+    from pxr import Sdf, Usd, UsdGeom, Vt
+    n = 100
+    xs = np.linspace(0.0, 1.0, n + 1)
+    X, Y = np.meshgrid(xs, xs, indexing="xy")
+    Z = np.where(np.abs(X - 0.5) < 0.02, -0.3, 0.0)
+    points = np.stack([X.ravel(), Y.ravel(), Z.ravel()], axis=1)
+    quads = []
+    for j in range(n):
+        for i in range(n):
+            v = j * (n + 1) + i
+            quads.append([v, v + 1, v + n + 2, v + n + 1])
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, "Z")
+    UsdGeom.Xform.Define(stage, "/Plate")
+    stage.GetRootLayer().defaultPrim = "Plate"
+    mesh = UsdGeom.Mesh.Define(stage, "/Plate/Mesh")
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    mesh.CreateFaceVertexCountsAttr(Vt.IntArray([4] * len(quads)))
+    mesh.CreateFaceVertexIndicesAttr(Vt.IntArray([int(v) for q in quads for v in q]))
+    mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(points.astype(np.float32)))
+    mesh.GetPrim().CreateRelationship("curvenet:curvenets", custom=False).SetTargets([Sdf.Path("/Plate/Curvenet")])
+    lines = [([0.1, 0.3, 0.002], [0.9, 0.3, 0.002]), ([0.1, 0.6, 0.01], [0.4, 0.9, 0.01]),
+             ([0.1, 0.9, 0.03], [0.4, 0.6, 0.03])]
+    pool = []
+    for a, b in lines:
+        a, b = np.array(a), np.array(b)
+        pool.extend([a, a + (b - a) / 3, a + 2 * (b - a) / 3, b])
+    pool = np.array(pool, dtype=np.float32)
+    idx = np.arange(len(pool), dtype=np.int32)
+    curves = UsdGeom.BasisCurves.Define(stage, "/Plate/Curvenet")
+    curves.CreateTypeAttr(UsdGeom.Tokens.cubic)
+    curves.CreateBasisAttr(UsdGeom.Tokens.bezier)
+    curves.CreateWrapAttr(UsdGeom.Tokens.nonperiodic)
+    curves.CreateCurveVertexCountsAttr(Vt.IntArray([4] * len(lines)))
+    pv = UsdGeom.PrimvarsAPI(curves.GetPrim()).CreatePrimvar("curvenet:cv", Sdf.ValueTypeNames.Point3fArray,
+                                                             UsdGeom.Tokens.vertex)
+    pv.Set(Vt.Vec3fArray.FromNumpy(pool))
+    pv.SetIndices(Vt.IntArray.FromNumpy(idx))
+    curves.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(pool[idx]))
+    curves.GetPrim().CreateAttribute("curvenet:sampleDensity", Sdf.ValueTypeNames.Float, custom=False,
+                                     variability=Sdf.VariabilityUniform).Set(5.0)
+    stage.GetRootLayer().Save()
+    return path
+
+
+@pytest.fixture(scope="module")
+def problem_server(tmp_path_factory):
+    d = tmp_path_factory.mktemp("viewer-problems")
+    stages = [_hand_override(d / "far.usda", _far_curve),
+              _hand_override(d / "coincident.usda", _coincident_vertices),
+              _trench_plate(d / "trench.usda")]
+    yield from _serve(*stages)
+
+
+def _open(page, url, state):
+    page.call("Page.navigate", {"url": url})
+    page.wait_for(f"document.body.dataset.state === '{state}' && document.body.dataset.rendered !== '-1'", True)
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+
+
+def _error_code(url):
+    """The error code `url` answers (it must answer an error)."""
+    try:
+        urllib.request.urlopen(url)
+    except urllib.error.HTTPError as e:
+        return json.loads(e.read())["code"]
+    raise AssertionError(f"{url} answered without an error")
+
+
+def _dataset(page, selector):
+    return page.eval(f"Object.assign({{}}, document.querySelector({json.dumps(selector)}).dataset)")
+
+
+def test_a_refused_binding_shows_the_mesh_the_curvenet_and_the_element_its_error_names(problem_server, tools):
+    page = Page(tools)
+    # A curve far from the surface: refused, naming a sample of spline 3.
+    _open(page, f"{problem_server}/viewer?stage=0", "refused")
+    assert page.eval("document.body.dataset.rendered") == "refusal"
+    named = _dataset(page, "#problem-label")
+    assert named["code"] == "binding_failed" == _error_code(f"{problem_server}/v1/viewer/stages/0"), named
+    assert named["element"] == "sample" and named["curvenet"] == "0", named
+    refusal = _get(f"{problem_server}/v1/viewer/stages/0/refusal")
+    assert named["spline"] == str(refusal["highlight"]["splines"][0]) and named["sample"] == str(refusal["highlight"]["sample"])
+    assert page.eval("document.body.dataset.framed") == "sample"
+    overlay = page.eval("document.getElementById('overlay').textContent")
+    assert overlay.startswith("/Hand/Mesh\nbinding refused: curvenet 0 sample"), overlay
+    assert page.eval("getComputedStyle(document.getElementById('problem')).display") != "none"
+    _, shot = page.screenshot()
+    assert _clay(shot).mean() > 0.01, f"the mesh covers only {_clay(shot).mean():.1%} of the canvas"
+    assert _curve(shot).sum() > 100, f"only {_curve(shot).sum()} pixels have the curvenet's colour"
+    assert _violet(shot).sum() > 150, f"only {_violet(shot).sum()} pixels have the highlight colour"
+    # The highlight is what makes the violet: hidden, it is gone.
+    page.eval("(() => { const b = document.querySelector('[data-layer=problems]'); b.checked = false;"
+              " b.dispatchEvent(new Event('change')); })()")
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    _, hidden = page.screenshot()
+    assert _violet(hidden).sum() < 0.1 * _violet(shot).sum(), "violet pixels remain without the highlight"
+
+    # Coincident vertices: refused, naming the face and its two vertices,
+    # filled in violet on the (fan-triangulated) mesh.
+    _open(page, f"{problem_server}/viewer?stage=1", "refused")
+    named = _dataset(page, "#problem-label")
+    assert named["code"] == _error_code(f"{problem_server}/v1/viewer/stages/1"), named
+    assert named["element"] == "faces", named
+    assert len(named["vertices"].split(",")) == 2 and named["faces"], named
+    assert page.eval("document.body.dataset.framed") == "faces"
+    _, shot = page.screenshot()
+    assert _clay(shot).mean() > 0.01, f"the mesh covers only {_clay(shot).mean():.1%} of the canvas"
+    assert _curve(shot).sum() > 100, f"only {_curve(shot).sum()} pixels have the curvenet's colour"
+    assert _violet(shot).sum() > 150, f"only {_violet(shot).sum()} pixels have the highlight colour"
+    assert not page.errors(), page.errors()
+
+
+def test_detour_and_touch_warnings_highlight_their_segments(problem_server, tools):
+    page = Page(tools)
+    _open(page, f"{problem_server}/viewer?stage=2", "ready")
+    items = page.eval("[...document.querySelectorAll('#warning-list li')].map(li => Object.assign({}, li.dataset))")
+    codes = [i.get("code") for i in items]
+    assert "segment_detour" in codes and "curves_touch" in codes, codes
+    detour = next(i for i in items if i["code"] == "segment_detour")
+    assert detour["element"] == "segment" and detour["curvenet"] == "0" and detour["spline"] == "0", detour
+    touch = next(i for i in items if i["code"] == "curves_touch")
+    assert sorted(s.split(":")[1] for s in touch["segments"].split()) == ["1", "2"], touch
+    # The service carries the same elements in the binding's warnings.
+    binding = _get(f"{problem_server}/v1/viewer/stages/2")["binding"]
+    wire = {w["code"]: w for w in binding["warnings"]}
+    assert wire["segment_detour"]["segment"]["spline"] == 0
+    assert {t["segment"]["spline"] for t in wire["curves_touch"]["touches"]} | \
+        {t["other"]["spline"] for t in wire["curves_touch"]["touches"]} == {1, 2}
+    _, whole = page.screenshot()
+    assert _violet(whole).sum() > 50, f"only {_violet(whole).sum()} pixels have the highlight colour"
+    # Clicking the detour warning frames its segment: the view zooms in on it.
+    page.eval(f"document.querySelector('#warning-list li[data-index=\"{detour['index']}\"]').click()")
+    page.wait_for("document.body.dataset.framed", "segment")
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    _, framed = page.screenshot()
+    assert _changed(whole, framed) > 0.05, "clicking the warning did not frame its segment"
+    assert _violet(framed).sum() > 50, f"only {_violet(framed).sum()} pixels have the highlight colour"
+    # Framed: the camera looks at the detour's position, closer than the whole plate.
+    target = page.eval("window.curvenetViewer.camera.target")
+    radius = page.eval("window.curvenetViewer.camera.radius")
+    at = wire["segment_detour"]["segment"]["position"]
+    assert np.linalg.norm(np.array(target) - np.array(at)) < 0.05, (target, at)
+    assert radius < 0.5 * 0.5 * np.sqrt(2 + 0.3 ** 2), f"the camera still frames the whole plate (radius {radius})"
     assert not page.errors(), page.errors()

@@ -174,6 +174,18 @@ impl Surface {
     pub fn mesh(&self) -> &PolyMesh {
         &self.mesh
     }
+    /// The triangulation the binding works in (every face triangulated in
+    /// its own plane: a fan when convex, ear clipping otherwise; folded
+    /// faces as their split fans): each triangle's mesh vertices,
+    /// counter-clockwise like its face, and the input face it belongs to.
+    /// A face's triangles are consecutive, faces in input order. Drawing
+    /// these shows the surface exactly as the closest-point queries and the
+    /// cut-faces see it.
+    pub fn triangles(&self) -> impl ExactSizeIterator<Item = ([u32; 3], u32)> + '_ {
+        self.triangles
+            .iter()
+            .map(|t| (t.map(|h| self.halfedges.tail(h)), self.input_face[self.halfedges.face(t[0]) as usize]))
+    }
     /// The input face that face `f` of [`Self::mesh`] comes from.
     pub fn input_face(&self, f: u32) -> u32 {
         self.input_face[f as usize]

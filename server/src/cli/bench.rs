@@ -1,26 +1,34 @@
 //! `curvenet bench [--json] [--meshes hand_1k4,hand_22k,hand_94k] [--repeats N]
-//! [--frames N] [--fixtures DIR] [--threads N]`: the paper's Table 1 (faces,
-//! vertices, knots, samples, cutting, factor and per-frame solve times) on
-//! the hand fixtures, plus what is needed to read those numbers.
+//! [--frames N] [--fixtures DIR] [--threads N] [--no-corpus] [--corpus-frames N]`:
+//! the paper's Table 1 (faces, vertices, knots, samples, cutting, factor and
+//! per-frame solve times) on the hand fixtures, plus what is needed to read
+//! those numbers, and a row per robustness-corpus mesh (`fixtures/corpus`).
 //!
 //! A benchmark, not a test: it never fails because a target is missed.
 //!
-//! Per mesh (`fixtures/hand/<name>.usda` or `.usdc`):
+//! Every binding is built as every caller builds one, by
+//! `curvenet_core::Deformer::new` (one surface: validation, face planes and
+//! the closest-point tree shared by the curvenet analysis and the binding),
+//! and every timed frame is solved by `Deformer::frame`.
 //!
-//! - **Binding**, `--repeats` times (default 5): curvenet analysis (§3,
-//!   `CurvenetLayout::new`, outside the binding), then `Binding::new`, whose
-//!   own stage timings (surface, cutting, assembly, factor) are reported
-//!   with the wall time of the whole call (`binding_ms`; `binding_other_ms`
-//!   is the part after the factorisation: per-corner right-hand sides,
-//!   curvenet-vertex tables). Medians.
+//! Per hand mesh (`fixtures/hand/<name>.usda` or `.usdc`):
+//!
+//! - **Binding**, `--repeats` times (default 5): `Deformer::new`, whose own
+//!   timings give the curvenet analysis (§3: sampling, intersections;
+//!   `analysis_ms`) and the binding's stages (surface, cutting, assembly,
+//!   factor). `binding_ms` is the wall time of the whole call less the
+//!   analysis (what the targets are set on; the analysis is reported
+//!   apart as it always was), `deformer_ms` the whole call;
+//!   `binding_other_ms` is the part after the factorisation (per-corner
+//!   right-hand sides, curvenet-vertex tables, blend shapes). Medians.
 //! - **Frames**, `--frames` poses (default 50): frame 0 is the neutral pose;
 //!   frame i rotates the control points distal to a plane across the fingers
 //!   (55 % of the pool's extent along +y, the finger direction) about the
 //!   x axis towards the palm (+z) by `60°·½(1 − cos 2πi/N)`, blended in over
 //!   a band of 10 % of the extent with a smoothstep (a smooth, deterministic
-//!   curl of every finger). Every frame runs through `Binding::deform` with
-//!   one reused `Workspace` (the allocation-free path) after one untimed
-//!   warm-up frame; the median, min and max per frame are reported.
+//!   curl of every finger). Every frame runs through `Deformer::frame` (its
+//!   workspace pool: allocation-free once warm) after one untimed warm-up
+//!   frame; the median, min and max per frame are reported.
 //! - **Where a frame goes**: `deform` cannot be split from outside, so
 //!   its parts are timed on their own, right after each timed frame (so
 //!   they see the same machine load), medians over the frames:
@@ -43,15 +51,22 @@
 //!   leaves out time the thread spent preempted on a shared machine. Targets
 //!   are judged on the wall-clock medians.
 //! - **Throughput**: the poses deformed in parallel across frames on a rayon
-//!   pool (`--threads`, default all cores), one frame per task and one
-//!   `Workspace` per thread, against the same pool with one thread; medians
-//!   of 3 runs of `max(frames, 8 × threads)` frames.
+//!   pool (`--threads`, default all cores), one `Deformer::frame` per task
+//!   (each takes a workspace from the deformer's pool), against the same
+//!   pool with one thread; medians of 3 runs of `max(frames, 8 × threads)` frames.
+//! - **Corpus** (unless `--no-corpus`): every stage in `<fixtures>/corpus`,
+//!   its first curvenet-deformed mesh bound `--repeats` times and
+//!   `--corpus-frames` frames (default 10) of the same kind of pose solved:
+//!   median binding and solve times, how the segments were embedded
+//!   (straightest path, fallback path, inside one face, left out) and the
+//!   binding's warnings.
 //!
 //! `--json` prints one object: `{"threads", "repeats", "frames", "meshes":
-//! [...]}`, one entry per mesh with (at least) `mesh`, `vertices`, `faces`,
-//! `knots`, `samples`, `cutting_ms`, `factor_ms`, `solve_ms`, `binding_ms`,
-//! all the other measurements under their field names (see `MeshBench`), and `targets`
-//! (null for meshes the issue sets none for). Times are milliseconds.
+//! [...], "corpus": [...]}`, one entry per hand mesh with (at least) `mesh`,
+//! `vertices`, `faces`, `knots`, `samples`, `cutting_ms`, `factor_ms`,
+//! `solve_ms`, `binding_ms`, all the other measurements under their field
+//! names (see `MeshBench`), and `targets` (null for meshes the issue sets
+//! none for); one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -60,10 +75,10 @@ use std::time::{Duration, Instant};
 
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use curvenet_core::{
-    BindOptions, Binding, Curvenet, CurvenetLayout, FrameInput, Mat3, PolyMesh, SamplingOptions, Workspace,
+    Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Frame, Mat3, MeshInput,
 };
-use curvenet_schema::CurvenetData;
 use curvenet_schema::usd::Stage;
+use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -98,6 +113,12 @@ pub struct Args {
     /// Threads of the parallel throughput run (default: all cores).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub threads: Option<u32>,
+    /// Leave out the robustness corpus (`<fixtures>/corpus`).
+    #[arg(long)]
+    pub no_corpus: bool,
+    /// Timed frames per corpus mesh.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    pub corpus_frames: u32,
 }
 
 #[derive(Serialize)]
@@ -106,6 +127,35 @@ struct Report {
     repeats: usize,
     frames: usize,
     meshes: Vec<MeshBench>,
+    corpus: Vec<CorpusBench>,
+}
+
+/// One corpus mesh: binding and solve medians, how its segments were
+/// embedded, its warnings.
+#[derive(Serialize)]
+struct CorpusBench {
+    mesh: String,
+    file: String,
+    faces: usize,
+    vertices: usize,
+    samples: usize,
+    segments: usize,
+    repeats: usize,
+    /// Median wall time of `Deformer::new` less its curvenet analysis.
+    binding_ms: f64,
+    analysis_ms: f64,
+    /// Segments embedded by the straightest path, by the fallback (shortest
+    /// path in a strip of faces), inside one face, and left out.
+    straightest_paths: usize,
+    fallback_paths: usize,
+    chord_paths: usize,
+    segments_left_out: usize,
+    frames: usize,
+    /// Median wall time of one `Deformer::frame`.
+    solve_ms: f64,
+    neutral_max_error: f64,
+    /// The binding's warnings (`code: message`).
+    warnings: Vec<String>,
 }
 
 #[derive(Serialize)]
@@ -140,9 +190,12 @@ struct MeshBench {
     surface_ms: f64,
     assembly_ms: f64,
     binding_other_ms: f64,
+    /// `deformer_ms` less `analysis_ms`.
     binding_ms: f64,
-    /// Thread CPU time of `Binding::new` (excludes time preempted; faer's factorisation runs on this thread).
-    binding_cpu_ms: Option<f64>,
+    /// Wall time of the whole `Deformer::new`.
+    deformer_ms: f64,
+    /// Thread CPU time of `Deformer::new` (excludes time preempted; faer's factorisation runs on this thread).
+    deformer_cpu_ms: Option<f64>,
     // Frames.
     frames: usize,
     max_angle_deg: f64,
@@ -214,12 +267,20 @@ pub fn run(args: &Args) -> CliResult {
         None => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
     };
     let (repeats, frames) = (args.repeats as usize, args.frames as usize);
-    let mut report = Report { threads, repeats, frames, meshes: Vec::new() };
+    let corpus = if args.no_corpus { Vec::new() } else { corpus_files(dir)? };
+    let mut report = Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new() };
     for (name, file) in args.meshes.iter().zip(&files) {
         if !args.json {
             eprintln!("curvenet bench: {name}: {repeats} bindings, {frames} frames…");
         }
         report.meshes.push(bench_mesh(name, file, repeats, frames, threads)?);
+    }
+    let corpus_frames = args.corpus_frames as usize;
+    for (name, file) in &corpus {
+        if !args.json {
+            eprintln!("curvenet bench: corpus {name}: {repeats} bindings, {corpus_frames} frames…");
+        }
+        report.corpus.push(bench_corpus_mesh(name, file, repeats, corpus_frames)?);
     }
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Input(e.to_string()))?;
@@ -246,12 +307,28 @@ fn fixture_file(dir: &Path, mesh: &str) -> CliResult<PathBuf> {
     )))
 }
 
-fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_ {
-    move |source| CliError::Core { context: context.to_string(), source }
+/// The corpus stages (`<fixtures>/corpus/*.usd[ac]`), by name, sorted.
+fn corpus_files(dir: &Path) -> CliResult<Vec<(String, PathBuf)>> {
+    let corpus = dir.join("corpus");
+    let entries = std::fs::read_dir(&corpus).map_err(|e| {
+        CliError::Input(format!("{}: {e} (pass --no-corpus to leave the corpus out)", corpus.display()))
+    })?;
+    let mut out = Vec::new();
+    for entry in entries {
+        let path = entry.map_err(|e| CliError::Input(format!("{}: {e}", corpus.display())))?.path();
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if matches!(ext, "usda" | "usdc" | "usd")
+            && let Some(stem) = path.file_stem().and_then(|s| s.to_str())
+        {
+            out.push((stem.to_string(), path.clone()));
+        }
+    }
+    out.sort();
+    Ok(out)
 }
 
-fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: usize) -> CliResult<MeshBench> {
-    // Load (once; timed for context).
+/// The first curvenet-deformed mesh of `file` and its curvenets, with the load time.
+fn load(file: &Path) -> CliResult<(MeshData, Vec<CurvenetData>, f64)> {
     let t = Instant::now();
     let stage = Stage::open(file)?;
     let mesh = stage
@@ -260,45 +337,131 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         .next()
         .ok_or_else(|| CliError::Input(format!("{}: no mesh deformed by curvenets", file.display())))?;
     let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<_, _>>()?;
-    let load_ms = ms_since(t);
+    Ok((mesh, nets, ms_since(t)))
+}
+
+/// One `Deformer::new` of `mesh` and `nets`, timed (wall and thread CPU).
+fn build(mesh: &MeshData, nets: &[CurvenetData], context: &str) -> CliResult<(Deformer, Lap)> {
+    let curvenets: Vec<CurvenetInput> = nets
+        .iter()
+        .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
+        .collect();
+    let input = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &mesh.face_vertex_counts,
+            face_vertex_indices: &mesh.face_vertex_indices,
+            projection_points: &mesh.projection_points,
+        },
+        curvenets: &curvenets,
+        blend_shapes: Vec::new(),
+        options: DeformerOptions::default(),
+    };
+    let clock = Stopwatch::start();
+    let deformer = Deformer::new(&input).map_err(core_err(context))?;
+    Ok((deformer, clock.stop()))
+}
+
+/// Solves one frame through `Deformer::frame` into `out`.
+fn solve(deformer: &Deformer, posed: &[Option<&[[f64; 3]]>], out: &mut [[f64; 3]]) -> curvenet_core::Result<()> {
+    deformer.frame(&Frame { posed, ..Frame::default() }, out, None)
+}
+
+fn bench_corpus_mesh(name: &str, file: &Path, repeats: usize, frames: usize) -> CliResult<CorpusBench> {
+    let (mesh, nets, _) = load(file)?;
+    let context = format!("{} {}", file.display(), mesh.path);
+    let (mut binding_ms, mut analysis_ms) = (Vec::new(), Vec::new());
+    let mut bound = None;
+    for _ in 0..repeats {
+        drop(bound.take());
+        let (deformer, lap) = build(&mesh, &nets, &context)?;
+        let analysis = deformer.timings().analysis_ms;
+        analysis_ms.push(analysis);
+        binding_ms.push(lap.wall_ms - analysis);
+        bound = Some(deformer);
+    }
+    let deformer = bound.ok_or_else(|| CliError::Input("--repeats must be at least 1".into()))?;
+    let points = &mesh.projection_points;
+    let diagonal = curvenet_core::mesh::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
+    let pools: Vec<Vec<Vec<[f64; 3]>>> = (0..frames).map(|i| pose(&nets, i, frames)).collect();
+    let mut out = vec![[0.0; 3]; deformer.n_vertices()];
+    let frame_err = |i: usize| {
+        let context = context.clone();
+        move |source| CliError::Core { context: format!("{context}, bench frame {i}"), source }
+    };
+    let inputs: Vec<Vec<Option<&[[f64; 3]]>>> =
+        pools.iter().map(|f| f.iter().map(|p| Some(p.as_slice())).collect()).collect();
+    solve(&deformer, &inputs[0], &mut out).map_err(frame_err(0))?; // warm-up: the workspace
+    let neutral_max_error = max_distance(&out, points) / diagonal;
+    let mut solve_ms = Vec::with_capacity(frames);
+    for (i, input) in inputs.iter().enumerate() {
+        let t = Instant::now();
+        solve(&deformer, input, &mut out).map_err(frame_err(i))?;
+        solve_ms.push(ms_since(t));
+    }
+    let b = deformer.binding();
+    let stats = b.stats();
+    Ok(CorpusBench {
+        mesh: name.to_string(),
+        file: file.display().to_string(),
+        faces: stats.mesh_faces,
+        vertices: stats.mesh_vertices,
+        samples: stats.samples,
+        segments: stats.segments,
+        repeats,
+        binding_ms: median(binding_ms),
+        analysis_ms: median(analysis_ms),
+        straightest_paths: stats.embedding.straightest,
+        fallback_paths: stats.embedding.fallback,
+        chord_paths: stats.embedding.chord,
+        segments_left_out: stats.embedding.disconnected,
+        frames,
+        solve_ms: median(solve_ms),
+        neutral_max_error,
+        warnings: b
+            .warnings()
+            .iter()
+            .map(|w| {
+                let wire = curvenet_schema::wire::Warning::from(w);
+                format!("{}: {}", wire.code, wire.message)
+            })
+            .collect(),
+    })
+}
+
+fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_ {
+    move |source| CliError::Core { context: context.to_string(), source }
+}
+
+fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: usize) -> CliResult<MeshBench> {
+    // Load (once; timed for context).
+    let (mesh, nets, load_ms) = load(file)?;
     let context = format!("{} {}", file.display(), mesh.path);
     let points = &mesh.projection_points;
-    let topology =
-        PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, points.len()).map_err(core_err(&context))?;
-    let curvenets: Vec<Curvenet> =
-        nets.iter().map(|n| Curvenet::new(&n.splines, &n.pool).map_err(core_err(&n.path))).collect::<CliResult<_>>()?;
 
-    // Bindings.
-    let (mut analysis, mut surface, mut cutting, mut assembly, mut factor, mut other) =
-        (vec![], vec![], vec![], vec![], vec![], vec![]);
+    // Bindings, through the one constructor.
+    let (mut analysis, mut surface, mut cutting, mut assembly, mut factor, mut other, mut binding_wall) =
+        (vec![], vec![], vec![], vec![], vec![], vec![], vec![]);
     let mut total = Series::default();
     let mut bound = None;
     for _ in 0..repeats {
-        let t = Instant::now();
-        let layouts: Vec<CurvenetLayout> = curvenets
-            .iter()
-            .zip(&nets)
-            .map(|(c, n)| {
-                CurvenetLayout::new(c, &topology, points, &SamplingOptions::default().with_density(n.sample_density))
-                    .map_err(core_err(&n.path))
-            })
-            .collect::<CliResult<_>>()?;
-        analysis.push(ms_since(t));
-        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
         drop(bound.take());
-        let clock = Stopwatch::start();
-        let binding = Binding::new(&topology, points, &refs, &BindOptions::default()).map_err(core_err(&context))?;
-        let lap = clock.stop();
-        let tm = binding.timings();
+        let (deformer, lap) = build(&mesh, &nets, &context)?;
+        let t = deformer.timings();
+        let tm = t.binding;
+        analysis.push(t.analysis_ms);
         surface.push(tm.surface_ms);
         cutting.push(tm.cutting_ms);
         assembly.push(tm.assembly_ms);
         factor.push(tm.factor_ms);
-        other.push(lap.wall_ms - (tm.surface_ms + tm.cutting_ms + tm.assembly_ms + tm.factor_ms));
+        let binding_lap = lap.wall_ms - t.analysis_ms;
+        binding_wall.push(binding_lap);
+        other.push(binding_lap - (tm.surface_ms + tm.cutting_ms + tm.assembly_ms + tm.factor_ms));
         total.push(lap);
-        bound = Some((binding, layouts));
+        bound = Some(deformer);
     }
-    let (binding, layouts) = bound.expect("repeats >= 1");
+    let deformer = bound.ok_or_else(|| CliError::Input("--repeats must be at least 1".into()))?;
+    let binding = deformer.binding();
+    let layouts = binding.layouts();
     let stats = binding.stats();
     let knots: usize = layouts.iter().map(|l| l.sampling().n_knots()).sum();
 
@@ -308,38 +471,34 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         pools.iter().map(|frame| frame.iter().map(|p| Some(p.as_slice())).collect()).collect();
     let diagonal = curvenet_core::mesh::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
 
-    // Frames, one after another with one workspace. Right after each timed
-    // frame (so that all see the same machine load) the curvenet part of its
-    // pose, the two triangular solves on random right-hand sides and the
-    // copy reference are timed too.
+    // Frames, one after another through `Deformer::frame` (the first, untimed,
+    // makes the workspace it then reuses). Right after each timed frame (so
+    // that all see the same machine load) the curvenet part of its pose, the
+    // two triangular solves on random right-hand sides and the copy
+    // reference are timed too.
     let ctx: &str = &context;
     let frame_err = |i: usize| move |source| CliError::Core { context: format!("{ctx}, bench frame {i}"), source };
-    let mut ws = binding.workspace();
-    let mut out = vec![[0.0; 3]; binding.n_vertices()];
-    binding
-        .deform(&FrameInput { posed: &inputs[0], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-        .map_err(frame_err(0))?;
+    let mut out = vec![[0.0; 3]; deformer.n_vertices()];
+    solve(&deformer, &inputs[0], &mut out).map_err(frame_err(0))?;
     let neutral_max_error = max_distance(&out, points) / diagonal;
-    let mut eval = CurvenetEval::new(&layouts);
+    let mut eval = CurvenetEval::new(layouts);
     let mut tri9 = TriSolve::<9>::new(binding.n_unknowns(), 9);
     let mut tri3 = TriSolve::<3>::new(binding.n_unknowns(), 3);
     let mut reference = CopyReference::new(stats.factor_nonzeros);
-    eval.time(&layouts, &pools[0]).map_err(frame_err(0))?; // warm-ups
-    tri9.time(&binding);
-    tri3.time(&binding);
+    eval.time(layouts, &pools[0]).map_err(frame_err(0))?; // warm-ups
+    tri9.time(binding);
+    tri3.time(binding);
     reference.time();
     let (mut deform_t, mut eval_t, mut tri9_t, mut tri3_t, mut reference_t) =
         (Series::default(), Series::default(), Series::default(), Series::default(), Series::default());
     let mut max_displacement = 0.0f64;
     for (i, (input, pose)) in inputs.iter().zip(&pools).enumerate() {
         let clock = Stopwatch::start();
-        binding
-            .deform(&FrameInput { posed: input, rest: None, ..Default::default() }, &mut ws, &mut out, None)
-            .map_err(frame_err(i))?;
+        solve(&deformer, input, &mut out).map_err(frame_err(i))?;
         deform_t.push(clock.stop());
-        eval_t.push(eval.time(&layouts, pose).map_err(frame_err(i))?);
-        tri9_t.push(tri9.time(&binding));
-        tri3_t.push(tri3.time(&binding));
+        eval_t.push(eval.time(layouts, pose).map_err(frame_err(i))?);
+        tri9_t.push(tri9.time(binding));
+        tri3_t.push(tri3.time(binding));
         reference_t.push(reference.time());
         max_displacement = max_displacement.max(max_distance(&out, points) / diagonal);
     }
@@ -347,13 +506,13 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
     // Throughput across frames.
     let jobs = frames.max(8 * threads);
     let serial =
-        median((0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, 1)).collect::<CliResult<_>>()?);
+        median((0..THROUGHPUT_REPEATS).map(|_| throughput(&deformer, &inputs, jobs, 1)).collect::<CliResult<_>>()?);
     let parallel = median(
-        (0..THROUGHPUT_REPEATS).map(|_| throughput(&binding, &inputs, jobs, threads)).collect::<CliResult<_>>()?,
+        (0..THROUGHPUT_REPEATS).map(|_| throughput(&deformer, &inputs, jobs, threads)).collect::<CliResult<_>>()?,
     );
 
     let solve_ms = deform_t.wall();
-    let binding_ms = total.wall();
+    let binding_ms = median(binding_wall);
     let (tri9_ms, tri3_ms, eval_ms, reference_ms) = (tri9_t.wall(), tri3_t.wall(), eval_t.wall(), reference_t.wall());
     let solve_cpu = deform_t.cpu();
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
@@ -392,7 +551,8 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         assembly_ms: median(assembly),
         binding_other_ms: median(other),
         binding_ms,
-        binding_cpu_ms: total.cpu(),
+        deformer_ms: total.wall(),
+        deformer_cpu_ms: total.cpu(),
         frames,
         max_angle_deg: MAX_ANGLE_DEG,
         solve_min_ms: deform_t.wall_min(),
@@ -537,30 +697,30 @@ impl CurvenetEval {
 }
 
 /// Frames per second deforming `jobs` frames (cycling over `inputs`) on a
-/// rayon pool of `threads` threads, one frame per task, one workspace per
-/// thread (allocated before the clock starts).
-fn throughput(binding: &Binding, inputs: &[Vec<Option<&[[f64; 3]]>>], jobs: usize, threads: usize) -> CliResult<f64> {
+/// rayon pool of `threads` threads, one `Deformer::frame` per task (each
+/// takes a workspace from the deformer's pool; one untimed frame per
+/// thread first, so that the pool holds one per thread), one output buffer
+/// per thread.
+fn throughput(deformer: &Deformer, inputs: &[Vec<Option<&[[f64; 3]]>>], jobs: usize, threads: usize) -> CliResult<f64> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| CliError::Input(format!("cannot start {threads} bench threads: {e}")))?;
-    let buffers: Vec<Mutex<(Workspace, Vec<[f64; 3]>)>> =
-        (0..threads).map(|_| Mutex::new((binding.workspace(), vec![[0.0; 3]; binding.n_vertices()]))).collect();
-    let t = Instant::now();
-    pool.install(|| {
-        (0..jobs).into_par_iter().with_max_len(1).try_for_each(|k| {
-            let slot = rayon::current_thread_index().unwrap_or(0);
-            let mut guard = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
-            let (ws, out) = &mut *guard;
-            binding.deform(
-                &FrameInput { posed: &inputs[k % inputs.len()], rest: None, ..Default::default() },
-                ws,
-                out,
-                None,
-            )
+    let buffers: Vec<Mutex<Vec<[f64; 3]>>> =
+        (0..threads).map(|_| Mutex::new(vec![[0.0; 3]; deformer.n_vertices()])).collect();
+    let run = |jobs: usize| {
+        pool.install(|| {
+            (0..jobs).into_par_iter().with_max_len(1).try_for_each(|k| {
+                let slot = rayon::current_thread_index().unwrap_or(0);
+                let mut out = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
+                solve(deformer, &inputs[k % inputs.len()], &mut out)
+            })
         })
-    })
-    .map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;
+    };
+    // Untimed: the deformer's pool gets a workspace for (about) every thread.
+    run(4 * threads).map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;
+    let t = Instant::now();
+    run(jobs).map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;
     Ok(jobs as f64 / t.elapsed().as_secs_f64())
 }
 
@@ -711,18 +871,28 @@ fn text_report(r: &Report) -> String {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
-        "Binding (ms, medians; stages as Binding::timings() reports them; total = wall time of Binding::new, total cpu = its thread CPU time; other = after the factorisation)"
+        "Binding (ms, medians of Deformer::new; stages as its timings report them; total = its wall time less the analysis; deformer = its wall time, cpu = its thread CPU time; other = after the factorisation)"
     );
     let _ = writeln!(
         s,
-        "{:<w$} {:>8} {:>8} {:>9} {:>8} {:>7} {:>8} {:>10} {:>14} {:>9}",
-        "mesh", "surface", "cutting", "assembly", "factor", "other", "total", "total cpu", "| analysis §3", "load USD"
+        "{:<w$} {:>8} {:>8} {:>9} {:>8} {:>7} {:>8} {:>9} {:>9} {:>14} {:>9}",
+        "mesh",
+        "surface",
+        "cutting",
+        "assembly",
+        "factor",
+        "other",
+        "total",
+        "deformer",
+        "cpu",
+        "| analysis §3",
+        "load USD"
     );
     for m in &r.meshes {
-        let cpu = m.binding_cpu_ms.map_or_else(|| "-".to_string(), |c| format!("{c:.2}"));
+        let cpu = m.deformer_cpu_ms.map_or_else(|| "-".to_string(), |c| format!("{c:.2}"));
         let _ = writeln!(
             s,
-            "{:<w$} {:>8.2} {:>8.2} {:>9.2} {:>8.2} {:>7.2} {:>8.2} {:>10} {:>14.2} {:>9.1}",
+            "{:<w$} {:>8.2} {:>8.2} {:>9.2} {:>8.2} {:>7.2} {:>8.2} {:>9.2} {:>9} {:>14.2} {:>9.1}",
             m.mesh,
             m.surface_ms,
             m.cutting_ms,
@@ -730,6 +900,7 @@ fn text_report(r: &Report) -> String {
             m.factor_ms,
             m.binding_other_ms,
             m.binding_ms,
+            m.deformer_ms,
             cpu,
             m.analysis_ms,
             m.load_ms
@@ -752,7 +923,7 @@ fn text_report(r: &Report) -> String {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
-        "Per frame (ms, medians; deform = Binding::deform with a reused workspace; timed right after each frame: tri9/tri3 = solve_in_place::<9>/<3>"
+        "Per frame (ms, medians; deform = Deformer::frame (its pooled workspace reused); timed right after each frame: tri9/tri3 = solve_in_place::<9>/<3>"
     );
     let _ = writeln!(
         s,
@@ -826,7 +997,8 @@ fn text_report(r: &Report) -> String {
         }
     }
     let _ = writeln!(s);
-    let _ = writeln!(s, "Throughput across frames (frames/s; one workspace per thread)");
+    let _ =
+        writeln!(s, "Throughput across frames (frames/s; Deformer::frame on every thread, workspaces from its pool)");
     let _ = writeln!(s, "{:<w$} {:>10} {:>14} {:>8}", "mesh", "1 thread", format!("{} threads", r.threads), "speedup");
     for m in &r.meshes {
         let _ = writeln!(
@@ -867,12 +1039,58 @@ fn text_report(r: &Report) -> String {
                 t.binding_ms,
                 met(t.binding_met)
             );
-            if let (Some(sc), Some(bc)) = (m.solve_cpu_ms, m.binding_cpu_ms) {
+            if let (Some(sc), Some(dc)) = (m.solve_cpu_ms, m.deformer_cpu_ms) {
                 let _ = writeln!(
                     s,
-                    "{:<w$} (judged on wall-clock medians; in thread CPU time: solve {sc:.2} ms, binding {bc:.1} ms)",
-                    ""
+                    "{:<w$} (judged on wall-clock medians; in thread CPU time: solve {sc:.2} ms, Deformer::new {dc:.1} ms of which analysis {:.1} ms wall)",
+                    "", m.analysis_ms
                 );
+            }
+        }
+    }
+    if !r.corpus.is_empty() {
+        let _ = writeln!(s);
+        let _ = writeln!(
+            s,
+            "Robustness corpus (fixtures/corpus; ms, medians of {} bindings and of the frames; paths: how segments were embedded)",
+            r.repeats
+        );
+        let w = r.corpus.iter().map(|m| m.mesh.len()).max().unwrap_or(4).max(10);
+        let _ = writeln!(
+            s,
+            "{:<w$} {:>8} {:>8} {:>9} {:>10} {:>9} {:>12} {:>9} {:>9} {:>9} {:>9}",
+            "mesh",
+            "vertices",
+            "segments",
+            "binding",
+            "analysis",
+            "solve",
+            "straightest",
+            "fallback",
+            "in face",
+            "left out",
+            "warnings"
+        );
+        for m in &r.corpus {
+            let _ = writeln!(
+                s,
+                "{:<w$} {:>8} {:>8} {:>9.1} {:>10.1} {:>9.2} {:>12} {:>9} {:>9} {:>9} {:>9}",
+                m.mesh,
+                m.vertices,
+                m.segments,
+                m.binding_ms,
+                m.analysis_ms,
+                m.solve_ms,
+                m.straightest_paths,
+                m.fallback_paths,
+                m.chord_paths,
+                m.segments_left_out,
+                m.warnings.len()
+            );
+        }
+        for m in &r.corpus {
+            for warning in &m.warnings {
+                let _ = writeln!(s, "{:<w$} warning {warning}", m.mesh);
             }
         }
     }

@@ -7,10 +7,9 @@
 use curvenet_core::binding::CutOptions;
 use curvenet_core::blend_shapes::BlendShape;
 use curvenet_core::{
-    BindOptions, BindWarning, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput,
-    PolyMesh,
+    BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput, PolyMesh,
 };
-use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, SegmentAt, Warning};
+use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, Warning};
 
 use crate::cache::{Entry, Key, hex};
 use crate::error::{Code, Phase, ServiceError};
@@ -275,7 +274,7 @@ pub fn build(
         size_bytes,
         stats: BindingStats::from(&b.stats()),
         timings: BindingTimings::new(t.analysis_ms, &t.binding, t.total_ms),
-        warnings: b.warnings().iter().map(warning).collect(),
+        warnings: b.warnings().iter().map(Warning::from).collect(),
     };
     Ok(Entry {
         id: response.binding_id.clone(),
@@ -289,27 +288,3 @@ pub fn build(
 /// Bytes of an entry besides its measured arrays: the entry, its strings
 /// and its response (warnings), rounded up.
 const ENTRY_OVERHEAD: usize = 4096;
-
-fn warning(w: &BindWarning) -> Warning {
-    let (code, segment) = match w {
-        BindWarning::UntouchedComponent { .. } => ("untouched_component", None),
-        BindWarning::IslandsRemoved { .. } => ("islands_removed", None),
-        BindWarning::DegenerateCutFaces { .. } => ("degenerate_cut_faces", None),
-        BindWarning::FacesSplit { .. } => ("faces_split", None),
-        BindWarning::CurvesTouch { .. } => ("curves_touch", None),
-        BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => (
-            "segment_detour",
-            Some(SegmentAt {
-                curvenet: segment.curvenet,
-                spline: segment.spline,
-                segment: segment.segment,
-                t: *t,
-                position: *position,
-                path_length: path_length.is_finite().then_some(*path_length),
-                segment_length: *segment_length,
-            }),
-        ),
-        _ => ("other", None),
-    };
-    Warning { code: code.into(), message: w.to_string(), segment }
-}

@@ -5,7 +5,7 @@ use curvenet_schema::wire::{
     BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions, BindingRequest,
     BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSpec, DeformRequest,
     DeformResponse, ErrorBody, ErrorDetails, FrameBatchRequest, FrameBatchResponse, FrameRequest, FrameResponse,
-    HealthResponse, InbetweenSpec, SegmentAt, SegmentId, Warning,
+    HealthResponse, InbetweenSpec, SegmentAt, SegmentId, TouchAt, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
@@ -59,16 +59,18 @@ impl Modify for BearerAuth {
         viewer::stages,
         viewer::stage,
         viewer::stage_frame,
+        viewer::stage_refusal,
         viewer::viewer_data,
         viewer::viewer_frame,
     ),
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
-        BindingTimings, Warning, SegmentAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
-        DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, ErrorDetails, SegmentId, HealthResponse, BinaryArray,
+        BindingTimings, Warning, SegmentAt, SegmentId, TouchAt, FrameRequest, FrameResponse, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
+        DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, ErrorDetails, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
         viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
+        viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight,
     )),
     modifiers(&BearerAuth),
     tags(

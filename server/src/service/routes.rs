@@ -36,7 +36,7 @@ pub fn app(state: AppState) -> Router {
         .route("/readyz", get(operations::readyz))
         // The viewer page holds no data (it asks for the token itself).
         .route("/viewer", get(viewer::page))
-        .route("/viewer/viewer.js", get(viewer::script))
+        .route("/viewer/js/{module}", get(viewer::module))
         .route("/viewer/viewer.css", get(viewer::style));
     let api = Router::new()
         .route("/v1/bindings", post(bindings::create_binding))
@@ -50,6 +50,7 @@ pub fn app(state: AppState) -> Router {
         .route("/v1/viewer/stages", get(viewer::stages))
         .route("/v1/viewer/stages/{index}", get(viewer::stage))
         .route("/v1/viewer/stages/{index}/frames/{k}", get(viewer::stage_frame))
+        .route("/v1/viewer/stages/{index}/refusal", get(viewer::stage_refusal))
         .route("/metrics", get(operations::metrics))
         .route("/openapi.json", get(operations::openapi_json))
         .route_layer(from_fn_with_state(state.clone(), auth));

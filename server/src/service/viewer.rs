@@ -3,10 +3,11 @@
 //! else) and the read-only JSON it draws.
 //!
 //! ```text
-//! GET  /viewer, /viewer/viewer.js, /viewer/viewer.css     the page (no token: it holds no data)
+//! GET  /viewer, /viewer/js/{module}.js, /viewer/viewer.css the page and its ES modules (no token: they hold no data)
 //! GET  /v1/viewer/stages                                  stages opened with `serve --open-stage` / `inspect --serve`
 //! GET  /v1/viewer/stages/{index}                          binds the stage's mesh (through the cache): its BindingResponse
 //! GET  /v1/viewer/stages/{index}/frames/{k}               frame k of the stage, solved: a ViewerFrame
+//! GET  /v1/viewer/stages/{index}/refusal                  a stage whose binding is refused: mesh, curvenets, the element named (a ViewerRefusal)
 //! GET  /v1/bindings/{id}/viewer-data                      the binding's geometry: a ViewerData
 //! POST /v1/bindings/{id}/viewer-frame                     a FrameRequest, solved: a ViewerFrame
 //! ```
@@ -16,6 +17,12 @@
 //! samples and scaled frames come from `Binding::curvenet_pose`, the
 //! samples and frames the solve itself uses. Positions are sent as flat
 //! `f32` arrays (`[x0, y0, z0, x1, ...]`) to keep the JSON small.
+//!
+//! The mesh is drawn in core's own triangulation (`Surface::triangles`: the
+//! triangles the closest-point queries and the cut-faces use). Warnings and
+//! refusals carry [`Highlight`]s: the element a core warning or error names
+//! (segments, a spline, a sample, faces, vertices), with its geometry and a
+//! box to frame (see `highlight.rs`).
 
 use std::sync::{Arc, Mutex};
 
@@ -24,13 +31,22 @@ use axum::body::Body;
 use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use curvenet_core::Binding;
+use curvenet_core::binding::Surface;
 use curvenet_core::binding::{CROSSING, MESH_VERTEX, SAMPLE};
 use curvenet_core::curvenet::ScaledFrame;
 use curvenet_core::halfedge::INVALID;
+use curvenet_core::{
+    BindOptions, Binding, Curvenet, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Error,
+    MeshInput, PolyMesh, SamplingOptions,
+};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, ErrorBody, FrameRequest, Warning};
 use serde::Serialize;
 use utoipa::ToSchema;
+
+mod highlight;
+
+pub use highlight::Highlight;
+use highlight::{NetGeometry, Scene};
 
 use crate::cache::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
@@ -40,8 +56,18 @@ use crate::state::{AppState, blocking};
 
 /// The page and its assets, built into the binary.
 const INDEX_HTML: &str = include_str!("viewer/index.html");
-const VIEWER_JS: &str = include_str!("viewer/viewer.js");
 const VIEWER_CSS: &str = include_str!("viewer/viewer.css");
+
+/// The script's ES modules (`/viewer/js/{name}`), the entry point first;
+/// they import one another by relative paths (`./math.js`).
+pub const MODULES: [(&str, &str); 6] = [
+    ("main.js", include_str!("viewer/js/main.js")),
+    ("api.js", include_str!("viewer/js/api.js")),
+    ("math.js", include_str!("viewer/js/math.js")),
+    ("camera.js", include_str!("viewer/js/camera.js")),
+    ("gl.js", include_str!("viewer/js/gl.js")),
+    ("highlight.js", include_str!("viewer/js/highlight.js")),
+];
 
 /// Everything the page may load: itself. No remote scripts, styles, fonts or images.
 const CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'";
@@ -149,6 +175,8 @@ pub struct ViewerData {
     pub curvenets: Vec<CurvenetView>,
     /// The binding's warnings followed by the viewer's own (`far_samples`).
     pub warnings: Vec<Warning>,
+    /// What each warning is about (same order and length as `warnings`).
+    pub highlights: Vec<Highlight>,
 }
 
 /// The input mesh in the projection pose.
@@ -156,8 +184,12 @@ pub struct ViewerData {
 pub struct MeshView {
     /// Flat `f32` xyz, `#V`.
     pub points: Vec<f32>,
-    /// Triangles (a fan per face), flat vertex triples.
+    /// Triangles, flat vertex triples: core's own triangulation of the
+    /// faces (`Surface::triangles`), or a fan per face when the mesh could
+    /// not be made a surface (see `triangulation`).
     pub triangles: Vec<u32>,
+    /// `surface` (core's triangulation) or `fan` (a refused mesh core could not triangulate).
+    pub triangulation: String,
     /// The input face of each triangle.
     pub triangle_face: Vec<u32>,
     /// Edges, flat vertex pairs.
@@ -208,6 +240,41 @@ pub struct CurvenetView {
     /// Scaled frames, 18 floats per segment: for the plus then the minus
     /// side, `t·l`, `b·w`, `n·h` (paper Fig. 5).
     pub frames: Vec<f32>,
+}
+
+/// `GET /v1/viewer/stages/{index}/refusal`: a stage whose binding is
+/// refused, drawn anyway: the mesh, the curvenets and the element the
+/// error names.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ViewerRefusal {
+    /// The stage (its `mesh` is the prim's path; the field `mesh` below is the geometry).
+    pub stage: ViewerStageInfo,
+    /// The error code the service answers for this refusal (`binding_failed`,
+    /// `invalid_mesh`, `invalid_curvenet`, ...).
+    pub code: String,
+    /// Core's message, naming the element.
+    pub message: String,
+    /// Bounding-box diagonal of the projection pose.
+    pub diagonal: f64,
+    /// The mesh in its projection pose (core's triangulation when the mesh
+    /// is a valid surface, else a fan per face).
+    pub mesh: MeshView,
+    pub curvenets: Vec<SketchView>,
+    /// What the error names, with its geometry and the box to frame.
+    pub highlight: Highlight,
+}
+
+/// A curvenet of a refused binding.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SketchView {
+    /// Its splines as Bézier polylines, flat `f32` xyz: spline `s` is points
+    /// `spline_start[s]..spline_start[s + 1]`.
+    pub points: Vec<f32>,
+    pub spline_start: Vec<u32>,
+    /// Its samples (flat `f32` xyz) and segments (sample pairs), when it
+    /// could be sampled on the surface; empty otherwise.
+    pub samples: Vec<f32>,
+    pub segments: Vec<u32>,
 }
 
 /// A solved frame as the viewer draws it.
@@ -265,8 +332,18 @@ pub(crate) async fn page() -> Response {
     asset("text/html; charset=utf-8", INDEX_HTML)
 }
 
-pub(crate) async fn script() -> Response {
-    asset("text/javascript; charset=utf-8", VIEWER_JS)
+/// One of the [`MODULES`], as JavaScript (the MIME type module scripts need).
+pub(crate) async fn module(Params(name): Params<String>) -> Result<Response, ServiceError> {
+    match MODULES.iter().find(|(n, _)| *n == name) {
+        Some((_, source)) => Ok(asset("text/javascript; charset=utf-8", source)),
+        None => Err(ServiceError::new(
+            Code::NotFound,
+            format!(
+                "the viewer has no module {name} (it has {})",
+                MODULES.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            ),
+        )),
+    }
 }
 
 pub(crate) async fn style() -> Response {
@@ -326,6 +403,34 @@ pub(crate) async fn stage(
         info: info(index, &stage),
         binding: BindingResponse { cached, ..entry.response.clone() },
     }))
+}
+
+/// Draws a stage whose binding is refused: the mesh, the curvenets and the
+/// element the error names, found by building the stage's input through
+/// core again (the surface, each curvenet's analysis, `Deformer::new`) and
+/// reading the typed error. Answers `not_found` when the stage binds.
+#[utoipa::path(get, path = "/v1/viewer/stages/{index}/refusal", tag = "viewer", security(("bearer" = [])),
+    params(("index" = usize, Path, description = "The stage's index in /v1/viewer/stages")),
+    responses(
+        (status = 200, description = "The refused stage, with the element its error names", body = ViewerRefusal),
+        (status = 404, description = "not_found: no such stage, or it binds", body = ErrorBody),
+    ))]
+pub(crate) async fn stage_refusal(
+    State(state): State<AppState>,
+    Params(index): Params<usize>,
+) -> Result<Response, ServiceError> {
+    let stage = state.viewer_stage(index)?;
+    let bytes = blocking(move || {
+        let Some(refused) = refusal(index, &stage) else {
+            return Err(ServiceError::new(
+                Code::NotFound,
+                format!("stage {index} ({}) binds: nothing is refused (GET /v1/viewer/stages/{index})", stage.mesh),
+            ));
+        };
+        serde_json::to_vec(&refused).map_err(ServiceError::internal_from)
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], bytes).into_response())
 }
 
 /// Solves frame `k` of a stage opened in the viewer.
@@ -476,21 +581,7 @@ fn flat_frames(frames: &[[ScaledFrame; 2]]) -> Vec<f32> {
 /// kinds, the curvenets with their marked samples and neutral frames.
 pub fn data(entry: &Entry) -> ViewerData {
     let b: &Binding = entry.binding();
-    let mesh = b.surface().mesh();
-    let mut triangles = Vec::new();
-    let mut triangle_face = Vec::new();
-    for (f, face) in mesh.faces().enumerate() {
-        for k in 1..face.len() - 1 {
-            triangles.extend([face[0], face[k], face[k + 1]]);
-            triangle_face.push(f as u32);
-        }
-    }
-    let mesh_view = MeshView {
-        points: flat(entry.projection_points()),
-        triangles,
-        triangle_face,
-        edges: mesh.edges().into_iter().flat_map(|(a, c)| [a, c]).collect(),
-    };
+    let mesh_view = surface_mesh_view(b.surface(), entry.projection_points());
 
     let cut = b.cut_mesh();
     let mut edges = Vec::new();
@@ -530,7 +621,9 @@ pub fn data(entry: &Entry) -> ViewerData {
 
     let diagonal = b.surface().diagonal();
     let mut warnings = entry.response.warnings.clone();
-    let curvenets = b
+    // (warning, curvenet) of the far_samples warnings added below.
+    let mut far_warnings: Vec<(usize, usize)> = Vec::new();
+    let curvenets: Vec<CurvenetView> = b
         .layouts()
         .iter()
         .enumerate()
@@ -555,7 +648,12 @@ pub fn data(entry: &Entry) -> ViewerData {
                         curvenet_core::binding::cut::DEFAULT_MAX_PROJECTION_DISTANCE * 100.0
                     ),
                     segment: None,
+                    touches: Vec::new(),
+                    faces: Vec::new(),
+                    component: None,
+                    count: Some(far_samples.len()),
                 });
+                far_warnings.push((warnings.len() - 1, k));
             }
             CurvenetView {
                 samples: flat(samples),
@@ -569,6 +667,35 @@ pub fn data(entry: &Entry) -> ViewerData {
             }
         })
         .collect();
+    let highlights = {
+        let scene = Scene {
+            points: entry.projection_points(),
+            faces: Vec::new(),
+            surface: Some(b.surface()),
+            nets: b
+                .layouts()
+                .iter()
+                .map(|l| NetGeometry { pool: l.neutral_pool(), splines: l.sampling().splines(), layout: Some(l) })
+                .collect(),
+        };
+        let mut highlights: Vec<Highlight> = warnings.iter().map(|w| scene.warning(w)).collect();
+        // The viewer's own far_samples warnings: the far samples of their curvenet.
+        for &(w, k) in &far_warnings {
+            let c: &CurvenetView = &curvenets[k];
+            let mut g = Highlight {
+                code: warnings[w].code.clone(),
+                message: warnings[w].message.clone(),
+                ..Highlight::default()
+            };
+            g.curvenet = Some(k as u32);
+            g.sample = c.far_samples.first().copied();
+            for &i in &c.far_samples {
+                g.points.extend_from_slice(&c.samples[3 * i as usize..3 * i as usize + 3]);
+            }
+            highlights[w] = scene.finish(g);
+        }
+        highlights
+    };
     ViewerData {
         binding: BindingResponse { cached: true, ..entry.response.clone() },
         diagonal,
@@ -576,5 +703,149 @@ pub fn data(entry: &Entry) -> ViewerData {
         cut: cut_view,
         curvenets,
         warnings,
+        highlights,
+    }
+}
+
+/// The mesh as core's surface triangulates it.
+fn surface_mesh_view(surface: &Surface, points: &[[f64; 3]]) -> MeshView {
+    let (mut triangles, mut triangle_face) = (Vec::new(), Vec::new());
+    for (t, f) in surface.triangles() {
+        triangles.extend(t);
+        triangle_face.push(f);
+    }
+    MeshView {
+        points: flat(points),
+        triangles,
+        triangle_face,
+        edges: surface.mesh().edges().into_iter().flat_map(|(a, c)| [a, c]).collect(),
+        triangulation: "surface".into(),
+    }
+}
+
+/// The refusal of a stage's binding, or `None` when it binds. The stages
+/// run in the order `Deformer::new` runs them (mesh, surface, each
+/// curvenet's analysis, the binding), keeping what succeeded for drawing.
+fn refusal(index: usize, stage: &ViewerStage) -> Option<ViewerRefusal> {
+    let req = &stage.binding;
+    let points = &req.projection_points;
+    let mut error: Option<Error> = None;
+    let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, points.len())
+        .map_err(|e| error = Some(e))
+        .ok();
+    let surface = mesh.as_ref().and_then(|m| Surface::new(m, points).map_err(|e| error = Some(e)).ok());
+    let layouts: Vec<Option<CurvenetLayout>> = req
+        .curvenets
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let s = surface.as_ref()?;
+            let sampling = SamplingOptions::default().with_density(c.sample_density);
+            Curvenet::new(&c.splines, &c.pool)
+                .and_then(|net| {
+                    CurvenetLayout::with_closest_point(&net, s.closest_points(), s.mean_edge_length(), &sampling)
+                })
+                .map_err(|e| {
+                    error.get_or_insert(Error::Curvenet { curvenet: k as u32, source: Box::new(e) });
+                })
+                .ok()
+        })
+        .collect();
+    if error.is_none() {
+        // Everything before the binding went through: the binding itself,
+        // through the one constructor, names the rest.
+        let nets: Vec<CurvenetInput> = req
+            .curvenets
+            .iter()
+            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
+            .collect();
+        let o = &req.options;
+        let mut bind = BindOptions::default().with_strict(o.strict);
+        bind.cut.snap_tolerance = o.snap_tolerance.unwrap_or(bind.cut.snap_tolerance);
+        bind.cut.max_projection_distance = o.max_projection_distance.unwrap_or(bind.cut.max_projection_distance);
+        let input = DeformerInput {
+            mesh: MeshInput {
+                face_vertex_counts: &req.face_vertex_counts,
+                face_vertex_indices: &req.face_vertex_indices,
+                projection_points: points,
+            },
+            curvenets: &nets,
+            blend_shapes: Vec::new(),
+            options: DeformerOptions::default().with_bind(bind),
+        };
+        error = Some(Deformer::new(&input).err()?);
+    }
+    let error = error?;
+    let answered = ServiceError::core(error.clone(), Phase::Bind).context(&stage.mesh);
+
+    let raw = Scene::raw_faces(&req.face_vertex_counts, &req.face_vertex_indices, points.len());
+    let scene = Scene {
+        points,
+        faces: raw.clone(),
+        surface: surface.as_ref(),
+        nets: req
+            .curvenets
+            .iter()
+            .zip(&layouts)
+            .map(|(c, l)| NetGeometry { pool: &c.pool, splines: &c.splines, layout: l.as_ref() })
+            .collect(),
+    };
+    let highlight = scene.error(&error, answered.code.as_str(), &answered.message);
+    let mesh_view = match &surface {
+        Some(s) => surface_mesh_view(s, points),
+        None => fan_mesh_view(&raw, points),
+    };
+    let curvenets = layouts
+        .iter()
+        .enumerate()
+        .map(|(k, layout)| {
+            let mut view =
+                SketchView { points: Vec::new(), spline_start: vec![0], samples: Vec::new(), segments: Vec::new() };
+            for s in 0..req.curvenets[k].splines.len() {
+                let line = scene.spline_polyline(k, s);
+                view.points.extend(flat(&line));
+                view.spline_start.push((view.points.len() / 3) as u32);
+            }
+            if let Some(l) = layout {
+                view.samples = flat(l.neutral_samples());
+                view.segments = l.sampling().segments().iter().flat_map(|s| s.samples).collect();
+            }
+            view
+        })
+        .collect();
+    Some(ViewerRefusal {
+        stage: info(index, stage),
+        code: answered.code.as_str().to_string(),
+        message: answered.message,
+        diagonal: curvenet_core::mesh::bounding_box_diagonal(points),
+        mesh: mesh_view,
+        curvenets,
+        highlight,
+    })
+}
+
+/// A mesh core could not make a surface of: a fan per face (faces with a
+/// corner out of range left out), edges from the faces' sides.
+fn fan_mesh_view(faces: &[Option<&[u32]>], points: &[[f64; 3]]) -> MeshView {
+    let (mut triangles, mut triangle_face, mut edges) = (Vec::new(), Vec::new(), Vec::new());
+    for (f, face) in faces.iter().enumerate() {
+        let Some(face) = face else { continue };
+        for k in 1..face.len().saturating_sub(1) {
+            triangles.extend([face[0], face[k], face[k + 1]]);
+            triangle_face.push(f as u32);
+        }
+        for k in 0..face.len() {
+            let (a, b) = (face[k], face[(k + 1) % face.len()]);
+            edges.push((a.min(b), a.max(b)));
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    MeshView {
+        points: flat(points),
+        triangles,
+        triangle_face,
+        edges: edges.into_iter().flat_map(|(a, b)| [a, b]).collect(),
+        triangulation: "fan".into(),
     }
 }
