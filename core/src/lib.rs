@@ -23,6 +23,7 @@ pub mod draft;
 pub mod error;
 pub mod halfedge;
 pub mod heap;
+pub mod ids;
 pub mod mesh;
 pub mod polygon_laplacian;
 pub mod solve;
