@@ -17,6 +17,8 @@ pub mod blend_shapes;
 pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
+#[cfg(feature = "counters")]
+pub mod counters;
 pub mod curvenet;
 pub mod deformer;
 pub mod draft;
