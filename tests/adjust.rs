@@ -3,7 +3,7 @@
 
 use curvenet_core::adjust::fit_rotation;
 use curvenet_core::closest_point::ClosestPointBvh;
-use curvenet_core::{Adjustment, Error, FrameInput, Mat3, Rotate};
+use curvenet_core::{Adjustment, Error, Frame, Mat3, Rotate};
 use curvenet_e2e::{Bound, bind_fixture, max_distance};
 use glam::{DMat3, DVec3};
 
@@ -16,11 +16,10 @@ fn solve(
     rest: Option<&[[f64; 3]]>,
     adj: &[Adjustment],
 ) -> (Pool, Vec<[f64; 9]>) {
-    let mut ws = b.binding.workspace();
-    let n = b.binding.n_vertices();
+    let n = b.deformer.n_vertices();
     let (mut out, mut grads) = (vec![[0.0; 3]; n], vec![[0.0; 9]; n]);
-    let input = FrameInput { posed: &[posed], rest, adjustments: adj };
-    b.binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap_or_else(|e| panic!("{e}"));
+    let input = Frame { posed: &[posed], rest, adjustments: adj, ..Default::default() };
+    b.deformer.frame(&input, &mut out, Some(&mut grads)).unwrap_or_else(|e| panic!("{e}"));
     (out, grads)
 }
 
@@ -49,8 +48,8 @@ fn bits(p: &[[f64; 3]]) -> Vec<u64> {
 /// An identity adjustment of every knot of curvenet 0, in several spellings
 /// (tangent translates of zeros, a unit quaternion, free tangents).
 fn identity_adjustments(b: &Bound) -> Vec<Adjustment> {
-    let sampling = b.layouts[0].sampling();
-    let plan = b.binding.orientation_plan(0);
+    let sampling = b.layouts()[0].sampling();
+    let plan = b.binding().orientation_plan(0);
     (0..sampling.n_knots())
         .map(|k| {
             let a = Adjustment::new(0, sampling.knot_point(k));
@@ -97,13 +96,12 @@ fn zero_adjustments_reproduce_the_unadjusted_frame_bit_for_bit() {
 
 /// Median wall time of a frame (one workspace, 15 runs).
 fn frame_ms(b: &Bound, posed: Option<&[[f64; 3]]>, rest: Option<&[[f64; 3]]>, adj: &[Adjustment]) -> f64 {
-    let mut ws = b.binding.workspace();
-    let mut out = vec![[0.0; 3]; b.binding.n_vertices()];
-    let input = FrameInput { posed: &[posed], rest, adjustments: adj };
+    let mut out = vec![[0.0; 3]; b.deformer.n_vertices()];
+    let input = Frame { posed: &[posed], rest, adjustments: adj, ..Default::default() };
     let mut times: Vec<f64> = (0..15)
         .map(|_| {
             let t0 = std::time::Instant::now();
-            b.binding.deform(&input, &mut ws, &mut out, None).unwrap();
+            b.deformer.frame(&input, &mut out, None).unwrap();
             t0.elapsed().as_secs_f64() * 1e3
         })
         .collect();
@@ -133,8 +131,8 @@ fn orientations_turn_with_a_rigid_rotation_of_the_whole_character() {
         let posed_r = posed.as_ref().map(|p| rigid(r, t, p));
         let rest_r = rigid(r, t, &rest);
         let rest_ref = posed.is_none().then_some(rest.as_slice());
-        let o = b.binding.knot_orientations(0, posed.as_deref(), rest_ref).unwrap();
-        let o_r = b.binding.knot_orientations(0, posed_r.as_deref(), Some(&rest_r)).unwrap();
+        let o = b.binding().knot_orientations(0, posed.as_deref(), rest_ref).unwrap();
+        let o_r = b.binding().knot_orientations(0, posed_r.as_deref(), Some(&rest_r)).unwrap();
         let mut worst = 0.0f64;
         let mut moved = 0.0f64;
         for ((p, a), (q, b_)) in o.iter().zip(&o_r) {
@@ -151,17 +149,17 @@ fn orientations_turn_with_a_rigid_rotation_of_the_whole_character() {
         assert!(moved > 0.3, "{name}: the reference pose should turn some knots");
 
         // A translate along a knot's local normal moves the surface along the rotated normal.
-        let fan = b.layouts[0].intersections().iter().find(|f| f.valence() == 4).expect("a valence-4 intersection");
+        let fan = b.layouts()[0].intersections().iter().find(|f| f.valence() == 4).expect("a valence-4 intersection");
         let knot = fan.point();
-        let k = b.layouts[0].sampling().knot_sample(knot as usize).unwrap() as usize;
-        let base = b.binding.adjusted_pool(0, posed.as_deref(), rest_ref, &[]).unwrap();
+        let k = b.layouts()[0].sampling().knot_sample(knot as usize).unwrap() as usize;
+        let base = b.binding().adjusted_pool(0, posed.as_deref(), rest_ref, &[]).unwrap();
         let surface = ClosestPointBvh::new(&b.topology, &rest).unwrap();
         let hit = surface.closest_point(base[knot as usize]).unwrap();
         let normal = v(surface.face_normal(hit.face as usize)); // outward: faces are counter-clockwise
         let eps = 0.01 * diag;
         let local = (m(&o[k].1).transpose() * normal * eps).to_array();
         let adj = [Adjustment::new(0, knot).with_translate(local)];
-        let moved_knot = b.binding.adjusted_pool(0, posed.as_deref(), rest_ref, &adj).unwrap();
+        let moved_knot = b.binding().adjusted_pool(0, posed.as_deref(), rest_ref, &adj).unwrap();
         let step = v(moved_knot[knot as usize]) - v(base[knot as usize]);
         assert!((step - normal * eps).length() <= 1e-12 * diag, "the knot moves along its local normal");
         let (plain, _) = solve(b, posed.as_deref(), rest_ref, &[]);
@@ -218,14 +216,14 @@ fn orientations_vary_continuously_along_every_curve_through_the_animated_bend_of
     // puts between two knots" is the angle between the deformation's local
     // rotations there (a Kabsch fit of the mesh vertices within 0.03).
     let b = bind_fixture("shots/hand_skinned/shot.usda");
-    let sampling = b.layouts[0].sampling();
+    let sampling = b.layouts()[0].sampling();
     let n_knots = sampling.n_knots();
     // The knots of every curve in curve order (intersections and anchors at the ends).
     let chains: Vec<Vec<usize>> = (0..sampling.n_curves())
         .map(|c| sampling.curve_samples(c).iter().map(|&q| q as usize).filter(|&q| q < n_knots).collect())
         .collect();
     let projection = &b.mesh.projection_points;
-    let neutral = b.layouts[0].neutral_pool();
+    let neutral = b.layouts()[0].neutral_pool();
     let tolerance = 30f64.to_radians();
     let (mut along, mut between_frames, mut off_surface) = (f64::NEG_INFINITY, f64::NEG_INFINITY, 0.0f64);
     let (mut where_along, mut largest_turn) = (String::new(), 0.0f64);
@@ -234,7 +232,7 @@ fn orientations_vary_continuously_along_every_curve_through_the_animated_bend_of
     for t in 1..=12 {
         let rest = b.stage.rest_points(&b.mesh, Some(t as f64)).unwrap();
         let o: Vec<DMat3> =
-            b.binding.knot_orientations(0, None, Some(&rest)).unwrap().iter().map(|(_, r)| m(r)).collect();
+            b.binding().knot_orientations(0, None, Some(&rest)).unwrap().iter().map(|(_, r)| m(r)).collect();
         let local: Vec<DMat3> = (0..n_knots)
             .map(|q| local_rotation(projection, &rest, neutral[sampling.knot_point(q) as usize], 0.03))
             .collect();
@@ -285,14 +283,14 @@ fn rotating_an_adjustment_turns_attached_tangents_about_the_knot_and_leaves_free
     let b = bind_fixture("shots/hand_skinned/shot.usda");
     let rest = b.stage.rest_points(&b.mesh, Some(12.0)).unwrap();
     let diag = b.diagonal();
-    let sampling = b.layouts[0].sampling();
-    let fan = b.layouts[0].intersections().iter().find(|f| f.valence() == 4).unwrap();
+    let sampling = b.layouts()[0].sampling();
+    let fan = b.layouts()[0].intersections().iter().find(|f| f.valence() == 4).unwrap();
     let knot = fan.point();
     let k = sampling.knot_sample(knot as usize).unwrap() as usize;
-    let tangents = b.binding.orientation_plan(0).knot_tangents(k).to_vec();
+    let tangents = b.binding().orientation_plan(0).knot_tangents(k).to_vec();
     assert_eq!(tangents.len(), 4, "a valence-4 intersection has 4 handles");
-    let o = m(&b.binding.knot_orientations(0, None, Some(&rest)).unwrap()[k].1);
-    let pool = |adj: &[Adjustment]| b.binding.adjusted_pool(0, None, Some(&rest), adj).unwrap();
+    let o = m(&b.binding().knot_orientations(0, None, Some(&rest)).unwrap()[k].1);
+    let pool = |adj: &[Adjustment]| b.binding().adjusted_pool(0, None, Some(&rest), adj).unwrap();
     let base = pool(&[]);
     let kp = v(base[knot as usize]);
     let others =
@@ -353,12 +351,11 @@ fn rotating_an_adjustment_turns_attached_tangents_about_the_knot_and_leaves_free
 #[test]
 fn bad_adjustments_are_refused_naming_the_knot_and_the_workspace_stays_usable() {
     let b = bind_fixture("hand/hand_1k4.usda");
-    let sampling = b.layouts[0].sampling();
+    let sampling = b.layouts()[0].sampling();
     let knot = sampling.knot_point(5);
     let handle = (0..sampling.n_points() as u32).find(|&p| sampling.knot_sample(p as usize).is_none()).unwrap();
-    let n_tangents = b.binding.orientation_plan(0).knot_tangents(5).len();
-    let mut ws = b.binding.workspace();
-    let mut out = vec![[0.0; 3]; b.binding.n_vertices()];
+    let n_tangents = b.binding().orientation_plan(0).knot_tangents(5).len();
+    let mut out = vec![[0.0; 3]; b.deformer.n_vertices()];
     let ok = Adjustment::new(0, knot).with_translate([0.0, 0.0, 0.002]);
     let cases: Vec<(Vec<Adjustment>, Error)> = vec![
         (vec![Adjustment::new(0, handle)], Error::NotAKnot { adjustment: 0, curvenet: 0, point: handle }),
@@ -402,15 +399,16 @@ fn bad_adjustments_are_refused_naming_the_knot_and_the_workspace_stays_usable() 
         ),
     ];
     for (adjustments, want) in cases {
-        let input = FrameInput { posed: &[None], rest: None, adjustments: &adjustments };
-        let got = b.binding.deform(&input, &mut ws, &mut out, None).unwrap_err();
+        let input = Frame { posed: &[None], adjustments: &adjustments, ..Default::default() };
+        let got = b.deformer.frame(&input, &mut out, None).unwrap_err();
         eprintln!("refused: {got}");
         assert_eq!(got, want);
-        assert_eq!(b.binding.check_adjustments(&adjustments).unwrap_err(), want);
+        assert_eq!(b.binding().check_adjustments(&adjustments).unwrap_err(), want);
     }
-    // The failed frames left no knot claimed: the same workspace solves a valid frame as a fresh one does.
-    let input = FrameInput { posed: &[None], rest: None, adjustments: std::slice::from_ref(&ok) };
-    b.binding.deform(&input, &mut ws, &mut out, None).unwrap();
+    // The failed frames left no knot claimed: the deformer's pooled workspace
+    // (the one the failed frames used) solves a valid frame as a fresh one does.
+    let input = Frame { posed: &[None], adjustments: std::slice::from_ref(&ok), ..Default::default() };
+    b.deformer.frame(&input, &mut out, None).unwrap();
     let (fresh, _) = solve(&b, None, None, std::slice::from_ref(&ok));
     assert_eq!(bits(&out), bits(&fresh));
 }

@@ -2,7 +2,7 @@
 //! inbetweens as usd-core's BlendShapeQuery does, weight 0 changes nothing,
 //! and after a rigid motion of the whole curvenet the sculpt moves with the surface.
 
-use curvenet_core::FrameInput;
+use curvenet_core::Frame;
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_e2e::{Bound, bind_fixture, max_distance, repo_root};
 
@@ -72,21 +72,13 @@ fn weights_interpolate_through_inbetweens_as_usd_core_does() {
 fn sculpts_move_with_the_surface_and_weight_zero_changes_nothing() {
     let b = bind_fixture("shots/hand_wave/shot.usda");
     let s = shapes(&b);
-    let n = b.binding.n_vertices();
-    let mut ws = b.binding.workspace();
+    let n = b.binding().n_vertices();
     let (mut out, mut grads) = (vec![[0.0; 3]; n], vec![[0.0; 9]; n]);
     // A rigid rotation of the whole curvenet: 70° about z, then a translation.
     let (c, sn) = (70f64.to_radians().cos(), 70f64.to_radians().sin());
     let rot = |p: &[f64; 3]| [c * p[0] - sn * p[1] + 0.1, sn * p[0] + c * p[1], p[2] - 0.2];
     let pool: Vec<[f64; 3]> = b.nets[0].pool.iter().map(rot).collect();
-    b.binding
-        .deform(
-            &FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
-            &mut ws,
-            &mut out,
-            Some(&mut grads),
-        )
-        .unwrap();
+    b.deformer.frame(&Frame { posed: &[Some(&pool)], ..Default::default() }, &mut out, Some(&mut grads)).unwrap();
     let base = out.clone();
     let rigid: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(rot).collect();
     let base_err = max_distance(&base, &rigid);

@@ -13,9 +13,9 @@ fn every_hand_tessellation_binds_and_reproduces_the_neutral_pose() {
     ] {
         let t = std::time::Instant::now();
         let b = bind_fixture(rel);
-        let s = b.binding.stats();
-        eprintln!("{rel}: bound in {:.0} ms: {s:?} {:?}", t.elapsed().as_secs_f64() * 1e3, b.binding.timings());
-        for w in b.binding.warnings() {
+        let s = b.binding().stats();
+        eprintln!("{rel}: bound in {:.0} ms: {s:?} {:?}", t.elapsed().as_secs_f64() * 1e3, b.binding().timings());
+        for w in b.binding().warnings() {
             eprintln!("  warning: {w}");
         }
         let pools: Vec<Vec<[f64; 3]>> = b.nets.iter().map(|n| n.pool.clone()).collect();

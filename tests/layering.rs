@@ -2,13 +2,12 @@
 //! built once in the projection pose deforms frames whose rest pose is
 //! anything of the same topology (skinning, cloth), with knot tracking.
 
-use curvenet_core::FrameInput;
+use curvenet_core::Frame;
 use curvenet_e2e::{Bound, bind_fixture, max_distance};
 
 fn solve(b: &Bound, posed: &[Option<&[[f64; 3]]>], rest: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
-    let mut ws = b.binding.workspace();
-    let mut out = vec![[0.0; 3]; b.binding.n_vertices()];
-    b.binding.deform(&FrameInput { posed, rest, ..Default::default() }, &mut ws, &mut out, None).unwrap();
+    let mut out = vec![[0.0; 3]; b.deformer.n_vertices()];
+    b.deformer.frame(&Frame { posed, rest, ..Default::default() }, &mut out, None).unwrap();
     out
 }
 
@@ -37,7 +36,7 @@ fn bend(p: [f64; 3]) -> [f64; 3] {
 /// The pool `tracked` with the wrist ring (the hand curvenet's isolated
 /// closed curve, fixtures/README.md) scaled by `factor` about its centre.
 fn widen_wrist_ring(b: &Bound, tracked: &[[f64; 3]], factor: f64) -> Vec<[f64; 3]> {
-    let topo = b.layouts[0].topology();
+    let topo = b.layouts()[0].topology();
     let ring = topo.isolated_closed_curves().next().expect("the hand curvenet has a wrist ring");
     let mut points: Vec<u32> =
         topo.curves()[ring].splines.iter().flat_map(|cs| b.nets[0].splines[cs.spline as usize]).collect();
@@ -86,7 +85,7 @@ fn an_articulated_ring_changes_only_the_surface_it_bounds() {
     let b = bind_fixture("hand/hand_1k4.usda");
     let rest: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(|p| rigid(*p)).collect();
     let mut tracked = vec![[0.0; 3]; b.nets[0].pool.len()];
-    b.binding.tracked_pool_into(0, &rest, &mut tracked).unwrap();
+    b.binding().tracked_pool_into(0, &rest, &mut tracked).unwrap();
     let posed = widen_wrist_ring(&b, &tracked, 1.15);
     let out = solve(&b, &[Some(&posed)], Some(&rest));
     let unposed = solve(&b, &[Some(&tracked)], Some(&rest));
@@ -126,7 +125,7 @@ fn over_a_skinned_rest_pose_an_articulated_wrist_ring_changes_only_its_sides() {
     let diag = b.diagonal();
     assert!(max_distance(&rest, &b.mesh.projection_points) > 0.2 * diag, "the skinned rest pose should move the hand");
     let mut tracked = vec![[0.0; 3]; b.nets[0].pool.len()];
-    b.binding.tracked_pool_into(0, &rest, &mut tracked).unwrap();
+    b.binding().tracked_pool_into(0, &rest, &mut tracked).unwrap();
     let unposed = solve(&b, &[None], Some(&rest));
     let err = max_distance(&unposed, &rest);
     assert!(err <= 1e-9 * diag, "not articulated: output differs from the skinned rest pose by {err:e}");

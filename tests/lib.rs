@@ -32,18 +32,39 @@ pub fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * b.abs().max(1.0)
 }
 
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, MeshInput, PolyMesh};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 
-/// A fixture stage's first deformed mesh, bound to its curvenets.
+/// A fixture stage's first deformed mesh, bound to its curvenets through
+/// the one way in ([`Deformer::new`]).
 pub struct Bound {
     pub stage: Stage,
     pub mesh: MeshData,
     pub topology: PolyMesh,
     pub nets: Vec<CurvenetData>,
-    pub layouts: Vec<CurvenetLayout>,
-    pub binding: Binding,
+    pub deformer: Deformer,
+}
+
+/// The deformer input of a mesh and its curvenets (no blend shapes, default options).
+pub fn deformer_input<'a>(mesh: &'a MeshData, curvenets: &'a [CurvenetInput<'a>]) -> DeformerInput<'a> {
+    DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &mesh.face_vertex_counts,
+            face_vertex_indices: &mesh.face_vertex_indices,
+            projection_points: &mesh.projection_points,
+        },
+        curvenets,
+        blend_shapes: Vec::new(),
+        options: Default::default(),
+    }
+}
+
+/// The deformer inputs of curvenets read from a stage.
+pub fn curvenet_inputs(nets: &[CurvenetData]) -> Vec<CurvenetInput<'_>> {
+    nets.iter()
+        .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
+        .collect()
 }
 
 /// Opens `fixtures/<rel>` and binds its first deformed mesh.
@@ -53,26 +74,23 @@ pub fn bind_fixture(rel: &str) -> Bound {
     let topology =
         PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, mesh.projection_points.len()).unwrap();
     let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
-    let layouts: Vec<CurvenetLayout> = nets
-        .iter()
-        .map(|n| {
-            let c = Curvenet::new(&n.splines, &n.pool).unwrap();
-            CurvenetLayout::new(
-                &c,
-                &topology,
-                &mesh.projection_points,
-                &SamplingOptions::default().with_density(n.sample_density),
-            )
-            .unwrap_or_else(|e| panic!("{rel} {}: {e}", n.path))
-        })
-        .collect();
-    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::new(&topology, &mesh.projection_points, &refs, &BindOptions::default())
-        .unwrap_or_else(|e| panic!("{rel}: binding failed: {e}"));
-    Bound { stage, mesh, topology, nets, layouts, binding }
+    let inputs = curvenet_inputs(&nets);
+    let deformer =
+        Deformer::new(&deformer_input(&mesh, &inputs)).unwrap_or_else(|e| panic!("{rel}: binding failed: {e}"));
+    Bound { stage, mesh, topology, nets, deformer }
 }
 
 impl Bound {
+    /// The binding (cut-mesh, factor, analysed curvenets).
+    pub fn binding(&self) -> &Binding {
+        self.deformer.binding()
+    }
+
+    /// The curvenets as analysed, in binding order.
+    pub fn layouts(&self) -> &[CurvenetLayout] {
+        self.binding().layouts()
+    }
+
     /// Deforms with the curvenets posed at `time` (their neutral pools when not articulated).
     pub fn deform_at(&self, time: f64) -> Vec<[f64; 3]> {
         let pools: Vec<Vec<[f64; 3]>> = self
@@ -85,16 +103,8 @@ impl Bound {
 
     pub fn deform(&self, pools: &[Vec<[f64; 3]>]) -> Vec<[f64; 3]> {
         let refs: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
-        let mut ws = self.binding.workspace();
-        let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
-        self.binding
-            .deform(
-                &curvenet_core::FrameInput { posed: &refs, rest: None, ..Default::default() },
-                &mut ws,
-                &mut out,
-                None,
-            )
-            .unwrap();
+        let mut out = vec![[0.0; 3]; self.deformer.n_vertices()];
+        self.deformer.frame(&Frame { posed: &refs, ..Default::default() }, &mut out, None).unwrap();
         out
     }
 

@@ -17,7 +17,9 @@ use std::collections::BTreeMap;
 use std::time::Instant;
 
 use curvenet_core::draft::{DraftOptions, Jitter, SplitMix64, draft};
-use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::{
+    CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, MeshInput, PolyMesh, SamplingOptions,
+};
 use curvenet_e2e::{fixtures_dir, max_distance, projected_crossings};
 use curvenet_schema::usd::Stage;
 use rayon::prelude::*;
@@ -64,7 +66,7 @@ enum Outcome {
 /// A bound curvenet must give the mesh back in its neutral pose
 /// (≤ 1e-9 × diagonal) and move it rigidly with a rigid motion of the
 /// curvenet (≤ 1e-6 × diagonal).
-fn frames_check(b: &Binding, pool: &[[f64; 3]], points: &[[f64; 3]]) -> Outcome {
+fn frames_check(b: &Deformer, pool: &[[f64; 3]], points: &[[f64; 3]]) -> Outcome {
     let diag = curvenet_core::mesh::bounding_box_diagonal(points);
     let (c, s) = (0.6f64.cos(), 0.6f64.sin());
     // A rotation of 0.6 rad about (1, 2, 2)/3 and a shift.
@@ -77,15 +79,14 @@ fn frames_check(b: &Binding, pool: &[[f64; 3]], points: &[[f64; 3]]) -> Outcome 
     let motion = |p: &[f64; 3]| -> [f64; 3] {
         std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + [0.3, -0.1, 0.2][i] * diag)
     };
-    let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
     let moved_pool: Vec<[f64; 3]> = pool.iter().map(motion).collect();
     for (what, pose, want, tol) in [
         ("NeutralPoseOff", pool.to_vec(), points.to_vec(), 1e-9),
         ("RigidMotionOff", moved_pool, points.iter().map(motion).collect(), 1e-6),
     ] {
-        let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest: None, ..Default::default() };
-        if let Err(e) = b.deform(&input, &mut ws, &mut out, None) {
+        let input = Frame { posed: &[Some(&pose)], ..Default::default() };
+        if let Err(e) = b.frame(&input, &mut out, None) {
             return Outcome::Failed(kind(&format!("{e:?}")), format!("{what}: the frame failed: {e}"));
         }
         let off = max_distance(&out, &want);
@@ -101,19 +102,25 @@ fn kind(debug: &str) -> String {
     debug.split(|c: char| !c.is_alphanumeric() && c != '_').next().unwrap_or(debug).to_string()
 }
 
-fn attempt(topology: &PolyMesh, points: &[[f64; 3]], seed: u64) -> Outcome {
+fn attempt(topology: &PolyMesh, counts: &[u32], points: &[[f64; 3]], seed: u64) -> Outcome {
     let o = options(seed);
     let d = match draft(topology, points, &o) {
         Ok(d) => d,
         Err(e) => return Outcome::NotDrafted(kind(&format!("{e:?}")), e.to_string()),
     };
-    let layout = match Curvenet::new(&d.splines, &d.pool)
-        .and_then(|net| CurvenetLayout::new(&net, topology, points, &SamplingOptions::default()))
-    {
-        Ok(l) => l,
-        Err(e) => return Outcome::Failed(kind(&format!("{e:?}")), e.to_string()),
+    let curvenet =
+        CurvenetInput { splines: &d.splines, pool: &d.pool, sample_density: SamplingOptions::default().density };
+    let input = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: counts,
+            face_vertex_indices: topology.face_vertex_indices(),
+            projection_points: points,
+        },
+        curvenets: std::slice::from_ref(&curvenet),
+        blend_shapes: Vec::new(),
+        options: Default::default(),
     };
-    let e = match Binding::new(topology, points, &[&layout], &BindOptions::default()) {
+    let e = match Deformer::new(&input) {
         Ok(b) => return frames_check(&b, &d.pool, points),
         Err(e) => e,
     };
@@ -132,6 +139,9 @@ fn attempt(topology: &PolyMesh, points: &[[f64; 3]], seed: u64) -> Outcome {
     }
     // They do not: describe the two segments (their samples' distance off the
     // surface and the gap between their projections), for the binding's side.
+    let layout = curvenet_core::Curvenet::new(&d.splines, &d.pool)
+        .and_then(|net| CurvenetLayout::new(&net, topology, points, &SamplingOptions::default()))
+        .expect("the curvenet was analysed before the binding refused it");
     let samples = layout.sampling().samples(&d.pool).unwrap();
     let detail: Vec<String> = pair
         .iter()
@@ -166,7 +176,8 @@ fn stress(rel: &str, draws: usize) {
         Err(_) => (0..draws).map(|i| seed(rel, i)).collect(),
     };
     let t0 = Instant::now();
-    let outcomes: Vec<(u64, Outcome)> = seeds.par_iter().map(|&s| (s, attempt(&topology, &points, s))).collect();
+    let outcomes: Vec<(u64, Outcome)> =
+        seeds.par_iter().map(|&s| (s, attempt(&topology, &mesh.face_vertex_counts, &points, s))).collect();
     let seconds = t0.elapsed().as_secs_f64();
     let mut bound = 0;
     let mut not_drafted: BTreeMap<String, usize> = BTreeMap::new();

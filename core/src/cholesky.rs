@@ -26,14 +26,6 @@ use faer::{Par, Side};
 
 use crate::error::{Error, Result};
 
-static NUMERIC_FACTORIZATIONS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-
-/// How many numeric factorisations this process has computed (for tests
-/// that check a frame never refactors).
-pub fn numeric_factorizations() -> usize {
-    NUMERIC_FACTORIZATIONS.load(std::sync::atomic::Ordering::Relaxed)
-}
-
 /// A symmetric matrix given by its lower triangle as `(row, col, value)`
 /// triplets with `row >= col`; duplicates are summed.
 #[derive(Debug, Clone, Default)]
@@ -82,7 +74,8 @@ impl Cholesky {
     }
 
     fn numeric(symbolic: Arc<SymbolicCholesky<u32>>, mat: &SparseColMat<u32, f64>) -> Result<Self> {
-        NUMERIC_FACTORIZATIONS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        #[cfg(feature = "counters")]
+        crate::counters::numeric_factorization_done();
         let n = mat.nrows();
         let mut l_values = vec![0.0f64; symbolic.len_val()];
         let req = symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());

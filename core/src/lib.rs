@@ -17,12 +17,15 @@ pub mod blend_shapes;
 pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
+#[cfg(feature = "counters")]
+pub mod counters;
 pub mod curvenet;
 pub mod deformer;
 pub mod draft;
 pub mod error;
 pub mod halfedge;
 pub mod heap;
+pub mod ids;
 pub mod mesh;
 pub mod polygon_laplacian;
 pub mod solve;

@@ -223,8 +223,8 @@ impl Binding {
             let mut n = 0.0;
             for h in hs.clone() {
                 let v = match self.corner[h as usize] {
-                    Corner::Unknown(u) => &ws.rhs9[u as usize],
-                    Corner::Constraint(r) => &ws.fc[r as usize],
+                    Corner::Unknown(u) => &ws.rhs9[u.index()],
+                    Corner::Constraint(r) => &ws.fc[r.index()],
                     Corner::Fixed => continue,
                 };
                 for i in 0..9 {
@@ -239,7 +239,7 @@ impl Binding {
             for h in hs {
                 if let Corner::Unknown(u) = self.corner[h as usize] {
                     let y = ff * corner_r[h as usize];
-                    let row = &mut ws.rhs3[u as usize];
+                    let row = &mut ws.rhs3[u.index()];
                     row[0] += y.x;
                     row[1] += y.y;
                     row[2] += y.z;
@@ -259,14 +259,14 @@ impl Binding {
             }
         }
         for (u, &v) in self.unknown_vertex.iter().enumerate() {
-            out[v as usize] = ws.rhs3[u];
+            out[v.index()] = ws.rhs3[u];
         }
         for (k, &v) in self.curve_vertices.iter().enumerate() {
             let rows =
                 &self.curve_vertex_rows[self.curve_vertex_start[k] as usize..self.curve_vertex_start[k + 1] as usize];
             let mean: DVec3 =
                 rows.iter().map(|&r| DVec3::from_array(ws.xc[r as usize])).sum::<DVec3>() / rows.len() as f64;
-            out[v as usize] = mean.to_array();
+            out[v.index()] = mean.to_array();
         }
         if let Some(g) = gradients {
             if g.len() != out.len() {
@@ -274,7 +274,7 @@ impl Binding {
             }
             g.iter_mut().for_each(|x| *x = flat(&crate::curvenet::IDENTITY));
             for (u, &v) in self.unknown_vertex.iter().enumerate() {
-                g[v as usize] = ws.rhs9[u];
+                g[v.index()] = ws.rhs9[u];
             }
             for (k, &v) in self.curve_vertices.iter().enumerate() {
                 let rows = &self.curve_vertex_rows
@@ -285,7 +285,7 @@ impl Binding {
                         m[i] += ws.fc[r as usize][i] / rows.len() as f64;
                     }
                 }
-                g[v as usize] = m;
+                g[v.index()] = m;
             }
         }
         if let Some((v, p)) = out.iter().enumerate().find(|(_, p)| !p.iter().all(|x| x.is_finite())) {
@@ -350,7 +350,7 @@ impl Binding {
         for f in 0..self.cut.n_faces() as u32 {
             let hs = self.cut.face_halfedges(f);
             let n = hs.len();
-            let lf = self.face_laplacian(f);
+            let lf = self.face_laplacian(crate::ids::CutFace(f));
             for j in 0..n {
                 let mut r = DVec3::ZERO;
                 for k in 0..n {

@@ -154,7 +154,7 @@ fn the_cut_mesh_laplacian_is_linearly_precise_and_tiles_with_cracks() {
     for f in 0..cut.n_faces() as u32 {
         let hs = cut.face_halfedges(f);
         let n = hs.len();
-        let lf = b.face_laplacian(f);
+        let lf = b.face_laplacian(curvenet_core::ids::CutFace(f));
         for j in 0..n {
             for k in j..n {
                 let d = (lf[j * n + k] - lf[k * n + j]).abs();

@@ -8,9 +8,9 @@ mod common;
 
 use common::*;
 use curvenet_core::PolyMesh;
-use curvenet_core::binding::Surface;
 use curvenet_core::binding::locate::Location;
 use curvenet_core::binding::trace::{Path, PathMethod, TraceFailure};
+use curvenet_core::binding::{Surface, strip, trace};
 use glam::DVec3;
 
 /// A random point of the surface: inside a face, on an edge or at a vertex.
@@ -83,9 +83,11 @@ fn any_two_points_of_a_component_are_joined_on_every_mesh() {
         for pair in 0..pairs {
             let (a, b) = (random_location(&s, &mut rng), random_location(&s, &mut rng));
             let what = format!("{name} pair {pair} (seed {seed}): {a:?} -> {b:?}");
-            s.trace_in_strip(a, b, tol, &mut path).unwrap_or_else(|e| panic!("{what}: fallback failed: {e:?}"));
+            strip::trace_in_strip(&s, a, b, tol, &mut path)
+                .unwrap_or_else(|e| panic!("{what}: fallback failed: {e:?}"));
             let strip_length = check_path(&s, &path, a, b, &what);
-            let method = s.trace(a, b, tol, &mut path).unwrap_or_else(|e| panic!("{what}: trace failed: {e:?}"));
+            let method =
+                trace::trace(&s, a, b, tol, &mut path).unwrap_or_else(|e| panic!("{what}: trace failed: {e:?}"));
             check_path(&s, &path, a, b, &what);
             methods[method as usize] += 1;
             assert!(strip_length.is_finite());
@@ -113,7 +115,10 @@ fn points_on_different_components_have_no_path() {
     let mesh = PolyMesh::new(&[4, 4], &[0, 1, 2, 3, 4, 5, 6, 7], 8).unwrap();
     let s = Surface::new(&mesh, &pts).unwrap();
     let mut path = Path::default();
-    assert_eq!(s.trace(Location::Vertex(0), Location::Vertex(6), 1e-9, &mut path), Err(TraceFailure::Disconnected));
+    assert_eq!(
+        trace::trace(&s, Location::Vertex(0), Location::Vertex(6), 1e-9, &mut path),
+        Err(TraceFailure::Disconnected)
+    );
 }
 
 /// A band one quad wide folded by 90° across its length: the only strip is
@@ -155,11 +160,11 @@ fn strip_path_is_the_geodesic_of_a_folded_band() {
     for (sa, wa, sb, wb) in [(0.13, 0.1, 1.71, 0.6), (0.5, 0.65, 1.05, 0.05), (0.02, 0.35, 1.98, 0.35)] {
         let (a, b) = (locate(sa, wa), locate(sb, wb));
         let mut path = Path::default();
-        s.trace_in_strip(a, b, 1e-9, &mut path).unwrap();
+        strip::trace_in_strip(&s, a, b, 1e-9, &mut path).unwrap();
         let length = check_path(&s, &path, a, b, "band");
         let geodesic = ((sb - sa).powi(2) + (wb - wa).powi(2)).sqrt();
         assert!((length - geodesic).abs() <= 1e-12, "band path {length} vs the unfolded straight line {geodesic}");
-        let method = s.trace(a, b, 1e-9, &mut path).unwrap();
+        let method = trace::trace(&s, a, b, 1e-9, &mut path).unwrap();
         assert_ne!(method, PathMethod::Chord);
     }
 }

@@ -127,14 +127,6 @@ impl Default for CutOptions {
     }
 }
 
-static CUT_MESH_BUILDS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-
-/// How many cut-meshes this process has built (for tests that check a frame
-/// never rebuilds one).
-pub fn cut_mesh_builds() -> usize {
-    CUT_MESH_BUILDS.load(std::sync::atomic::Ordering::Relaxed)
-}
-
 /// A cut-vertex.
 #[derive(Debug, Clone, Copy)]
 pub struct CutVertex {
@@ -211,7 +203,8 @@ struct Piece {
 impl CutMesh {
     /// Cuts `surface` by the segments of `input`.
     pub fn new(surface: &Surface, input: CutInput<'_>, options: &CutOptions) -> Result<Self> {
-        CUT_MESH_BUILDS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        #[cfg(feature = "counters")]
+        crate::counters::cut_mesh_built();
         let tol = options.snap_tolerance * surface.diagonal;
         let mut reg = Registry::new(surface);
         // 1. Where the samples project.
@@ -308,7 +301,7 @@ impl CutMesh {
                 continue; // both samples project to one point: nothing to insert
             }
             let (la, lb) = (reg.vertices[ca as usize].loc, reg.vertices[cb as usize].loc);
-            let method = surface.trace(la, lb, tol, &mut path).map_err(|why| match why {
+            let method = super::trace::trace(surface, la, lb, tol, &mut path).map_err(|why| match why {
                 TraceFailure::Disconnected | TraceFailure::LeftTheSurface | TraceFailure::Lost => {
                     Error::SegmentNotTraced { segment: input.segment(s as u32) }
                 }

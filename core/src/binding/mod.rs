@@ -28,25 +28,28 @@
 //! clockwise: the corner lies to its left. At an intersection this picks the
 //! copy of the curve end bounding the corner's sector clockwise.
 
+mod assemble;
+mod classify;
 pub mod cut;
+mod drawing;
+mod join;
 pub mod locate;
+mod rhs;
 pub mod strip;
 pub mod surface;
 pub mod trace;
-mod view;
 
-use rustc_hash::FxHashMap as HashMap;
 use std::time::Instant;
 
 use glam::DVec3;
 
 use crate::cancel::Cancel;
-use crate::cholesky::{Cholesky, SymmetricTriplets};
-use crate::curvenet::{CurvenetLayout, Side};
-use crate::error::{Error, Result, SampleRef, SegmentRef};
-use crate::halfedge::INVALID;
+use crate::cholesky::Cholesky;
+use crate::curvenet::{CurvenetLayout, ScaledFrame, scaled_frames};
+use crate::error::{Error, Result, SegmentRef};
+use crate::ids::{ConstraintRow, CutFace, CutHalfedge, MeshVertex, Unknown};
 use crate::mesh::PolyMesh;
-use crate::polygon_laplacian::{DEFAULT_LAMBDA, PolygonScratch, polygon_laplacian};
+use crate::polygon_laplacian::DEFAULT_LAMBDA;
 use crate::sparse::Csr;
 pub use cut::{
     CROSSING, CutInput, CutMesh, CutOptions, DETOUR_EDGES, DETOUR_RATIO, Detour, EmbeddingCounts, MESH_VERTEX, SAMPLE,
@@ -184,9 +187,9 @@ impl std::fmt::Display for BindWarning {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) enum Corner {
     /// Unknown `u` (row of `V`'s column space).
-    Unknown(u32),
+    Unknown(Unknown),
     /// Constraint row `k`.
-    Constraint(u32),
+    Constraint(ConstraintRow),
     /// A vertex passed through (an untouched component): contributes nothing.
     Fixed,
 }
@@ -274,9 +277,10 @@ pub struct Binding {
     /// Per cut halfedge (= corner).
     pub(crate) corner: Vec<Corner>,
     /// Mesh vertex of each unknown.
-    pub(crate) unknown_vertex: Vec<u32>,
-    /// Per mesh vertex: its unknown, or INVALID (constrained, fixed or unused).
-    pub(crate) vertex_unknown: Vec<u32>,
+    pub(crate) unknown_vertex: Vec<MeshVertex>,
+    /// Per mesh vertex: its unknown, if any (none: on the curvenet, in an
+    /// untouched component or in no face).
+    pub(crate) vertex_unknown: Vec<Option<Unknown>>,
     /// Per-cut-face Laplacians, row-major, concatenated (`face_start`-aligned squares).
     pub(crate) face_laplacian: Vec<f64>,
     pub(crate) face_laplacian_start: Vec<u32>,
@@ -297,7 +301,7 @@ pub struct Binding {
     pub(crate) corner_r: Vec<DVec3>,
     /// Mesh vertices on the curvenet and the constraint rows of their corners
     /// (their output is the mean), CSR by `curve_vertex_start`.
-    pub(crate) curve_vertices: Vec<u32>,
+    pub(crate) curve_vertices: Vec<MeshVertex>,
     pub(crate) curve_vertex_start: Vec<u32>,
     pub(crate) curve_vertex_rows: Vec<u32>,
     /// Per curvenet, per pool point: where it sits over the projection-pose
@@ -309,9 +313,6 @@ pub struct Binding {
     pub(crate) stats: BindStats,
     pub(crate) timings: BindTimings,
 }
-
-const TAIL: u8 = 0;
-const HEAD: u8 = 1;
 
 impl Binding {
     /// Binds `curvenets` (analysed against this mesh in the projection pose)
@@ -329,7 +330,12 @@ impl Binding {
         Self::with_surface(surface, curvenets, options, ms(t0, t1))
     }
 
-    /// Like [`Self::new`] with a prepared surface.
+    /// Like [`Self::new`] with a prepared surface. The stages, one
+    /// function each: join the curvenets ([`join`]) → cut the mesh along
+    /// them ([`CutMesh::new`]) and check how they were drawn ([`drawing`]) →
+    /// classify the corners and number the unknowns ([`classify`]) →
+    /// assemble the Laplacian and factor it ([`assemble`]) → the
+    /// right-hand-side maps and the knots' bindings ([`rhs`]).
     pub fn with_surface(
         surface: Surface,
         curvenets: &[&CurvenetLayout],
@@ -342,268 +348,38 @@ impl Binding {
         let cancel = &options.cancel;
         cancel.check("cutting")?;
         let t1 = Instant::now();
-        // Concatenate the curvenets.
-        let mut samples = Vec::new();
-        let mut segments = Vec::new();
-        let mut sample_ref = Vec::new();
-        let mut segment_ref = Vec::new();
-        let mut segment_curve = Vec::new();
-        let mut n_curves = 0u32;
-        let mut nets = Vec::new();
-        let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::default();
-        let mut n_slots = 0u32;
-        for (k, layout) in curvenets.iter().enumerate() {
-            let curvenet = k as u32;
-            let range = NetRange { sample: samples.len() as u32, segment: segments.len() as u32, slot: n_slots };
-            nets.push(range);
-            samples.extend_from_slice(layout.neutral_samples());
-            let first = sample_ref.len();
-            sample_ref.extend((0..layout.n_samples() as u32).map(|sample| SampleRef {
-                curvenet,
-                spline: u32::MAX,
-                sample,
-            }));
-            for seg in layout.sampling().segments() {
-                segments.push(seg.samples.map(|i| i + range.sample));
-                segment_ref.push(SegmentRef { curvenet, spline: seg.spline, segment: seg.spline_segment });
-                segment_curve.push(n_curves + seg.curve);
-                for &i in &seg.samples {
-                    sample_ref[first + i as usize].spline = seg.spline;
-                }
-            }
-            for (k, slot) in layout.constraints().slots().iter().enumerate() {
-                let id = range.slot + k as u32;
-                if let Some(s) = slot.outgoing {
-                    slot_of.insert((s + range.segment, TAIL, slot.side), id);
-                }
-                if let Some(s) = slot.incoming {
-                    slot_of.insert((s + range.segment, HEAD, slot.side), id);
-                }
-            }
-            n_slots += layout.constraints().len() as u32;
-            n_curves += layout.sampling().n_curves() as u32;
-        }
-        let cut = CutMesh::new(
-            &surface,
-            CutInput {
-                samples: &samples,
-                segments: &segments,
-                sample_ref: &sample_ref,
-                segment_ref: &segment_ref,
-                segment_curve: &segment_curve,
-                cancel,
-            },
-            &options.cut,
-        )?;
-        let mut warnings = Vec::new();
-        if !surface.split_faces().is_empty() {
-            warnings.push(BindWarning::FacesSplit { faces: surface.split_faces().to_vec() });
-        }
-        // Strict mode names a stretch first (the graver), else the first point.
-        let worst = cut.touches().iter().find(|t| t.stretch).or(cut.touches().first());
-        if let Some(first) = worst {
-            let at = |t: &cut::Touch| {
-                (segment_ref[t.segment as usize], segment_ref[t.other as usize], cut.vertex(t.vertex).pos.to_array())
-            };
-            if options.strict {
-                let (segment, other, _) = at(first);
-                let face = match cut.vertex(first.vertex).loc {
-                    locate::Location::Face { face, .. } => face,
-                    loc => {
-                        let mut faces = Vec::new();
-                        surface.faces_of(loc, &mut faces);
-                        faces.first().copied().unwrap_or(0)
-                    }
-                };
-                return Err(if first.stretch {
-                    Error::CurvesOverlap { segment, other }
-                } else {
-                    Error::CurvesCross { segment, other, face: surface.input_face(face) }
-                });
-            }
-            let touches = cut.touches();
-            warnings.push(BindWarning::CurvesTouch {
-                count: touches.len(),
-                examples: touches.iter().take(BindWarning::EXAMPLES).map(at).collect(),
-            });
-        }
-        for d in cut.detours() {
-            let seg = segment_ref[d.segment as usize];
-            let layout = curvenets[seg.curvenet as usize];
-            let n = layout.sampling().spline_segments(seg.spline as usize).max(1) as f64;
-            let [i, j] = segments[d.segment as usize];
-            let mid = (DVec3::from_array(samples[i as usize]) + DVec3::from_array(samples[j as usize])) * 0.5;
-            let (t, position) = ((seg.segment as f64 + 0.5) / n, mid.to_array());
-            let (path_length, segment_length) = (d.path_length, d.segment_length);
-            if options.strict {
-                return Err(Error::SegmentDetour { segment: seg, t, position, path_length, segment_length });
-            }
-            warnings.push(BindWarning::SegmentDetour { segment: seg, t, position, path_length, segment_length });
-        }
+        let joined = join::join(curvenets);
+        let input = CutInput {
+            samples: &joined.samples,
+            segments: &joined.segments,
+            sample_ref: &joined.sample_ref,
+            segment_ref: &joined.segment_ref,
+            segment_curve: &joined.segment_curve,
+            cancel,
+        };
+        let cut = CutMesh::new(&surface, input, &options.cut)?;
+        let mut warnings = drawing::check_drawing(&surface, &cut, &joined, curvenets, options.strict)?;
         let t2 = Instant::now();
 
-        // Corners: unknown, slot or crossing row.
-        let n_vertices = surface.mesh.n_vertices();
-        let mut corner = vec![Corner::Fixed; cut.n_halfedges()];
-        let mut crossings: Vec<CrossingRow> = Vec::new();
-        let mut crossing_row: HashMap<(u32, u32, Side), u32> = HashMap::default();
-        let mut vertex_is_curve = vec![false; n_vertices];
-        for h in 0..cut.n_halfedges() as u32 {
-            cancel.check_every(h as usize, "assembly")?;
-            let v = cut.tail(h);
-            let cv = cut.vertex(v);
-            if cv.mask & (SAMPLE | CROSSING) == 0 {
-                continue; // a plain mesh vertex: decided below
-            }
-            if cv.mask & MESH_VERTEX != 0 {
-                vertex_is_curve[v as usize] = true;
-            }
-            let (seg, side, end) = curve_side(&cut, h).ok_or_else(|| Error::Internal {
-                what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it"),
-            })?;
-            // A vertex the segment's path passes through takes a crossing row
-            // of that segment; one of its samples, the sample's slot.
-            let row = match cut.crossing_t(v, seg) {
-                Some(t) => {
-                    let key = (v, seg, side);
-                    match crossing_row.get(&key) {
-                        Some(&r) => r,
-                        None => {
-                            let lo = slot(&slot_of, seg, TAIL, side)?;
-                            let hi = slot(&slot_of, seg, HEAD, side)?;
-                            let r = n_slots + crossings.len() as u32;
-                            crossings.push(CrossingRow { lo, hi, t, vertex: v });
-                            crossing_row.insert(key, r);
-                            r
-                        }
-                    }
-                }
-                None => slot(&slot_of, seg, end, side)?,
-            };
-            corner[h as usize] = Corner::Constraint(row);
-        }
-
-        // Components touched by the curvenet.
-        let he = &surface.halfedges;
-        let mut touched = vec![false; he.n_components()];
-        for h in 0..cut.n_halfedges() as u32 {
-            if matches!(corner[h as usize], Corner::Constraint(_)) {
-                touched[he.face_component(surface_face(&cut, h)) as usize] = true;
-            }
-        }
-        let mut component_vertices = vec![0usize; he.n_components()];
-        let mut vertex_component = vec![INVALID; n_vertices];
-        for f in 0..surface.mesh.n_faces() {
-            for &v in surface.mesh.face(f) {
-                vertex_component[v as usize] = he.face_component(f as u32);
-            }
-        }
-        for v in 0..n_vertices {
-            if vertex_component[v] != INVALID {
-                component_vertices[vertex_component[v] as usize] += 1;
-            }
-        }
-        for (c, &t) in touched.iter().enumerate() {
-            if !t {
-                if options.strict {
-                    return Err(Error::UntouchedComponent { component: c, vertices: component_vertices[c] });
-                }
-                warnings.push(BindWarning::UntouchedComponent { component: c, vertices: component_vertices[c] });
-            }
-        }
-        let mut vertex_unknown = vec![INVALID; n_vertices];
-        let mut unknown_vertex = Vec::new();
-        for v in 0..n_vertices {
-            let c = vertex_component[v];
-            if c != INVALID && touched[c as usize] && !vertex_is_curve[v] {
-                vertex_unknown[v] = unknown_vertex.len() as u32;
-                unknown_vertex.push(v as u32);
-            }
-        }
-        for h in 0..cut.n_halfedges() as u32 {
-            if corner[h as usize] == Corner::Fixed {
-                let v = cut.tail(h);
-                let u = vertex_unknown[v as usize];
-                if u != INVALID {
-                    corner[h as usize] = Corner::Unknown(u);
-                }
-            }
-        }
+        let classified = classify::classify(&surface, &cut, &joined, options.strict, cancel, &mut warnings)?;
         let (islands, island_samples) = cut.islands_removed();
         if islands > 0 {
             warnings.push(BindWarning::IslandsRemoved { islands, samples: island_samples });
         }
-
-        // Assembly.
-        let n_u = unknown_vertex.len();
-        let n_c = n_slots as usize + crossings.len();
-        let mut k_entries = Vec::new();
-        let mut b_entries: Vec<(u32, u32, f64)> = Vec::new();
-        let mut face_laplacian = Vec::new();
-        let mut face_laplacian_start = vec![0u32];
-        let mut scratch = PolygonScratch::default();
-        let mut lf = Vec::new();
-        let mut corners = Vec::new();
-        let mut degenerate = 0usize;
-        for f in 0..cut.n_faces() as u32 {
-            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
-            let hs = cut.face_halfedges(f);
-            corners.clear();
-            corners.extend(hs.clone().map(|h| cut.vertex(cut.tail(h)).pos));
-            let n = corners.len();
-            if polygon_laplacian(&corners, options.lambda, &mut scratch, &mut lf).is_none() {
-                degenerate += 1;
-                lf.clear();
-                lf.resize(n * n, 0.0);
-            }
-            face_laplacian.extend_from_slice(&lf);
-            face_laplacian_start.push(face_laplacian.len() as u32);
-            let base = hs.start;
-            for j in 0..n {
-                let Corner::Unknown(uj) = corner[base as usize + j] else { continue };
-                for k in 0..n {
-                    let l = lf[j * n + k];
-                    if l == 0.0 {
-                        continue;
-                    }
-                    match corner[base as usize + k] {
-                        Corner::Unknown(uk) if uk <= uj => k_entries.push((uj, uk, l)),
-                        Corner::Constraint(r) => b_entries.push((uj, r, l)),
-                        _ => {}
-                    }
-                }
-            }
-        }
-        if degenerate > 0 {
-            warnings.push(BindWarning::DegenerateCutFaces { count: degenerate });
-        }
-        let b = Csr::from_triplets(n_u, n_c, b_entries);
+        let (n_u, n_c) = (classified.unknown_vertex.len(), classified.n_rows(&joined));
+        let assembled =
+            assemble::assemble(&cut, &classified.corner, (n_u, n_c), options.lambda, cancel, &mut warnings)?;
         cancel.check("the factorisation")?;
         let t3 = Instant::now();
-        let factor = if n_u == 0 {
-            Cholesky::new(&SymmetricTriplets { n: 0, entries: Vec::new() })?
-        } else {
-            Cholesky::new(&SymmetricTriplets { n: n_u, entries: k_entries }).map_err(|e| match e {
-                Error::NotPositiveDefinite { pivot } => {
-                    let at = pivot.and_then(|u| unknown_vertex.get(u)).map_or(String::new(), |&v| {
-                        format!(" (first failing pivot at mesh vertex {v}, component {})", vertex_component[v as usize])
-                    });
-                    Error::Internal {
-                        what: format!(
-                            "VᵀLV is not positive definite although every unknown's component is constrained{at}"
-                        ),
-                    }
-                }
-                other => other,
-            })?
-        };
+        let factor = assemble::factor(assembled.system, &classified.unknown_vertex, &classified.vertex_component)?;
         let t4 = Instant::now();
         cancel.check("the factorisation")?;
+
         let stats = BindStats {
-            mesh_vertices: n_vertices,
+            mesh_vertices: surface.mesh.n_vertices(),
             mesh_faces: surface.mesh.n_faces(),
-            samples: samples.len(),
-            segments: segments.len(),
+            samples: joined.samples.len(),
+            segments: joined.segments.len(),
             cut_vertices: cut.n_vertices(),
             cut_faces: cut.n_faces(),
             cut_halfedges: cut.n_halfedges(),
@@ -617,102 +393,33 @@ impl Binding {
         };
         let timings =
             BindTimings { surface_ms, cutting_ms: ms(t1, t2), assembly_ms: ms(t2, t3), factor_ms: ms(t3, t4) };
-
-        let mut slot_sample = Vec::with_capacity(n_slots as usize);
-        for (layout, range) in curvenets.iter().zip(&nets) {
-            slot_sample.extend(layout.constraints().slots().iter().map(|s| s.sample + range.sample));
-        }
-        let sample_projection: Vec<DVec3> = (0..samples.len() as u32)
-            .map(|i| match cut.sample_vertex(i) {
-                Some(v) => cut.vertex(v).pos,
-                None => DVec3::from_array(samples[i as usize]),
-            })
-            .collect();
-        let sample_offset: Vec<DVec3> =
-            samples.iter().zip(&sample_projection).map(|(q, p)| DVec3::from_array(*q) - *p).collect();
-        let crossing_offset = crossings
-            .iter()
-            .map(|c| {
-                let (pl, ph) = (
-                    sample_projection[slot_sample[c.lo as usize] as usize],
-                    sample_projection[slot_sample[c.hi as usize] as usize],
-                );
-                cut.vertex(c.vertex).pos - pl.lerp(ph, c.t)
-            })
-            .collect();
-        let mut corner_r = vec![DVec3::ZERO; cut.n_halfedges()];
-        for f in 0..cut.n_faces() as u32 {
-            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
-            let hs = cut.face_halfedges(f);
-            let n = hs.len();
-            let lf = &face_laplacian
-                [face_laplacian_start[f as usize] as usize..face_laplacian_start[f as usize + 1] as usize];
-            for j in 0..n {
-                corner_r[hs.start as usize + j] =
-                    (0..n).map(|k| lf[j * n + k] * cut.vertex(cut.tail(hs.start + k as u32)).pos).sum();
-            }
-        }
-        let mut rows_of: Vec<Vec<u32>> = vec![Vec::new(); n_vertices];
-        for h in 0..cut.n_halfedges() as u32 {
-            let v = cut.tail(h);
-            if (v as usize) < n_vertices
-                && vertex_is_curve[v as usize]
-                && let Corner::Constraint(r) = corner[h as usize]
-            {
-                rows_of[v as usize].push(r);
-            }
-        }
-        let mut curve_vertices = Vec::new();
-        let mut curve_vertex_start = vec![0u32];
-        let mut curve_vertex_rows = Vec::new();
-        for (v, rows) in rows_of.iter().enumerate() {
-            if !rows.is_empty() {
-                curve_vertices.push(v as u32);
-                curve_vertex_rows.extend_from_slice(rows);
-                curve_vertex_start.push(curve_vertex_rows.len() as u32);
-            }
-        }
-        let mut knots = Vec::with_capacity(curvenets.len());
-        for layout in curvenets {
-            let pool = layout.neutral_pool();
-            let mut bound = Vec::with_capacity(pool.len());
-            for p in pool {
-                let hit = surface.bvh.closest_point(*p)?;
-                let tri = hit.triangle;
-                let [a, b, c] = surface.triangle_points(tri, &surface.points);
-                let offset = DVec3::from_array(*p) - DVec3::from_array(hit.point);
-                let local = match triangle_frame(a, b, c) {
-                    Some(fr) => [offset.dot(fr[0]), offset.dot(fr[1]), offset.dot(fr[2])],
-                    None => offset.to_array(),
-                };
-                bound.push(KnotBinding { tri, bary: hit.barycentric, local });
-            }
-            knots.push(bound);
-        }
+        let face_laplacian = (&assembled.face_laplacian[..], &assembled.face_laplacian_start[..]);
+        let maps = rhs::rhs_maps(&cut, &joined, curvenets, &classified, face_laplacian, cancel)?;
+        let knots = rhs::bind_knots(&surface, curvenets)?;
         let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {
             knots,
             orientation_plans,
             layouts: curvenets.iter().map(|l| (*l).clone()).collect(),
-            slot_sample,
-            sample_projection,
-            sample_offset,
-            crossing_offset,
-            corner_r,
-            curve_vertices,
-            curve_vertex_start,
-            curve_vertex_rows,
+            slot_sample: maps.slot_sample,
+            sample_projection: maps.sample_projection,
+            sample_offset: maps.sample_offset,
+            crossing_offset: maps.crossing_offset,
+            corner_r: maps.corner_r,
+            curve_vertices: maps.curve_vertices,
+            curve_vertex_start: maps.curve_vertex_start,
+            curve_vertex_rows: maps.curve_vertex_rows,
             surface,
             cut,
-            nets,
-            n_slots: n_slots as usize,
-            crossings,
-            corner,
-            unknown_vertex,
-            vertex_unknown,
-            face_laplacian,
-            face_laplacian_start,
-            b,
+            nets: joined.nets,
+            n_slots: joined.n_slots as usize,
+            crossings: classified.crossings,
+            corner: classified.corner,
+            unknown_vertex: classified.unknown_vertex,
+            vertex_unknown: classified.vertex_unknown,
+            face_laplacian: assembled.face_laplacian,
+            face_laplacian_start: assembled.face_laplacian_start,
+            b: assembled.b,
             factor,
             warnings,
             stats,
@@ -744,22 +451,22 @@ impl Binding {
         self.n_slots + self.crossings.len()
     }
     /// The Laplacian of cut-face `f` (row-major, `n_f × n_f`).
-    pub fn face_laplacian(&self, f: u32) -> &[f64] {
+    pub fn face_laplacian(&self, f: CutFace) -> &[f64] {
         &self.face_laplacian
-            [self.face_laplacian_start[f as usize] as usize..self.face_laplacian_start[f as usize + 1] as usize]
+            [self.face_laplacian_start[f.index()] as usize..self.face_laplacian_start[f.index() + 1] as usize]
     }
     /// The value source of corner (cut halfedge) `h`: `Some(Ok(u))` unknown
     /// `u`, `Some(Err(r))` constraint row `r`, `None` fixed.
-    pub fn corner_source(&self, h: u32) -> Option<std::result::Result<u32, u32>> {
-        match self.corner[h as usize] {
+    pub fn corner_source(&self, h: CutHalfedge) -> Option<std::result::Result<Unknown, ConstraintRow>> {
+        match self.corner[h.index()] {
             Corner::Unknown(u) => Some(Ok(u)),
             Corner::Constraint(r) => Some(Err(r)),
             Corner::Fixed => None,
         }
     }
     /// The mesh vertex of unknown `u`.
-    pub fn unknown_vertex(&self, u: u32) -> u32 {
-        self.unknown_vertex[u as usize]
+    pub fn unknown_vertex(&self, u: Unknown) -> MeshVertex {
+        self.unknown_vertex[u.index()]
     }
     /// Solves `VᵀL_hV x = rhs` for K columns stored per row (see [`Cholesky::solve_in_place`]).
     pub fn solve_in_place<const K: usize>(&self, rhs: &mut [[f64; K]], work: &mut [[f64; K]]) {
@@ -769,67 +476,64 @@ impl Binding {
     }
     /// The unknown of mesh vertex `v`, or `None` when it is on the
     /// curvenet, in an untouched component or in no face.
-    pub fn vertex_unknown(&self, v: u32) -> Option<u32> {
-        let u = self.vertex_unknown[v as usize];
-        (u != INVALID).then_some(u)
+    pub fn vertex_unknown(&self, v: MeshVertex) -> Option<Unknown> {
+        self.vertex_unknown[v.index()]
     }
     /// The projected (closest surface) position p̌ of global sample `i`.
     pub fn sample_projection(&self, i: u32) -> [f64; 3] {
         self.sample_projection[i as usize].to_array()
     }
+
+    /// The bound curvenets as analysed (neutral samples, frames, topology), in binding order.
+    pub fn layouts(&self) -> &[CurvenetLayout] {
+        &self.layouts
+    }
+
+    /// The first global sample of curvenet `k` (global samples number the
+    /// curvenets' samples one curvenet after another, as
+    /// [`Binding::sample_projection`] and `CutMesh::sample_vertex` do).
+    pub fn sample_offset(&self, k: usize) -> usize {
+        self.nets[k].sample as usize
+    }
+
+    /// Curvenet `k` as a frame sees it: its samples and the scaled frames
+    /// of both sides of every segment (`[segment][Side as usize]`), for the
+    /// posed pool `posed`, else the pool tracked to the frame's `rest` pose,
+    /// else the neutral pose — the samples and frames [`Binding::deform`]
+    /// uses. Fails naming the curvenet when the pool has the wrong length or
+    /// the pose is degenerate. For inspection tools (the service's viewer).
+    pub fn curvenet_pose(
+        &self,
+        k: usize,
+        posed: Option<&[[f64; 3]]>,
+        rest: Option<&[[f64; 3]]>,
+    ) -> Result<CurvenetPose> {
+        let layout = self.layouts.get(k).ok_or(Error::IndexOutOfRange {
+            what: "curvenet pose request",
+            index: 0,
+            target: "curvenet",
+            value: k as u32,
+            len: self.layouts.len(),
+        })?;
+        let samples = match (posed, rest) {
+            (Some(pool), _) => layout.sampling().samples(pool)?,
+            (None, Some(rest)) => {
+                let mut tracked = vec![[0.0; 3]; layout.sampling().n_points()];
+                self.tracked_pool_into(k, rest, &mut tracked)?;
+                layout.sampling().samples(&tracked)?
+            }
+            (None, None) => layout.neutral_samples().to_vec(),
+        };
+        let frames = scaled_frames(layout, &samples)?;
+        Ok((samples, frames))
+    }
 }
+
+/// A curvenet's samples and per-side scaled frames in one pose.
+pub type CurvenetPose = (Vec<[f64; 3]>, Vec<[ScaledFrame; 2]>);
 
 fn ms(a: Instant, b: Instant) -> f64 {
     (b - a).as_secs_f64() * 1e3
-}
-
-fn slot(map: &HashMap<(u32, u8, Side), u32>, segment: u32, end: u8, side: Side) -> Result<u32> {
-    map.get(&(segment, end, side)).copied().ok_or_else(|| Error::Internal {
-        what: format!("no constraint slot for segment {segment} end {end} side {side:?}"),
-    })
-}
-
-/// The input face of the cut-face of halfedge `h`.
-fn surface_face(cut: &CutMesh, h: u32) -> u32 {
-    cut.parent(cut.face(h))
-}
-
-/// For the corner at `tail(h)`: the curve halfedge bounding its sector (the
-/// nearest clockwise, else the nearest counter-clockwise when the mesh
-/// boundary intervenes), as (segment, side of the corner, which end of the
-/// segment the cut-vertex is: TAIL or HEAD).
-fn curve_side(cut: &CutMesh, h: u32) -> Option<(u32, Side, u8)> {
-    // Clockwise: g = outgoing, the corner lies to the left of g.
-    let mut g = h;
-    for _ in 0..cut.n_halfedges() {
-        if let Some((s, fwd)) = cut.segment(g) {
-            // g leaves the vertex: forward means the vertex is the segment's tail side.
-            return Some((s, if fwd { Side::Plus } else { Side::Minus }, if fwd { TAIL } else { HEAD }));
-        }
-        let t = cut.twin(g);
-        if t == INVALID {
-            break;
-        }
-        g = cut.next(t);
-        if g == h {
-            return None;
-        }
-    }
-    // Counter-clockwise: p = incoming, the corner lies to the left of p.
-    let mut g = h;
-    for _ in 0..cut.n_halfedges() {
-        let p = cut.prev(g);
-        if let Some((s, fwd)) = cut.segment(p) {
-            // p arrives at the vertex: forward means the vertex is the segment's head side.
-            return Some((s, if fwd { Side::Plus } else { Side::Minus }, if fwd { HEAD } else { TAIL }));
-        }
-        let t = cut.twin(p);
-        if t == INVALID || t == h {
-            return None;
-        }
-        g = t;
-    }
-    None
 }
 
 impl Binding {

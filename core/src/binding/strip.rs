@@ -103,156 +103,160 @@ fn cdiv(a: DVec2, b: DVec2) -> DVec2 {
     DVec2::new(a.x * b.x + a.y * b.y, a.y * b.x - a.x * b.y) / d
 }
 
-impl Surface {
-    /// The centroid of face `f` (mean of its corners).
-    fn face_centroid(&self, f: u32) -> DVec3 {
-        let hs = self.halfedges.face_halfedges(f);
-        let n = hs.len() as f64;
-        hs.map(|h| self.points[self.halfedges.tail(h) as usize]).sum::<DVec3>() / n
-    }
+/// The centroid of face `f` (mean of its corners).
+fn face_centroid(surface: &Surface, f: u32) -> DVec3 {
+    let hs = surface.halfedges.face_halfedges(f);
+    let n = hs.len() as f64;
+    hs.map(|h| surface.points[surface.halfedges.tail(h) as usize]).sum::<DVec3>() / n
+}
 
-    /// The chain of faces from a face holding `a` to one holding `b`, with
-    /// the halfedge of each face crossed into the next (`portals[i]` is in
-    /// `faces[i]`, its twin in `faces[i + 1]`). `None` when no chain exists
-    /// (the two points are on different components).
-    fn face_strip(&self, a: Location, b: Location) -> Option<(Vec<u32>, Vec<u32>)> {
-        let he = &self.halfedges;
-        let (mut fa, mut fb) = (Vec::new(), Vec::new());
-        self.faces_of(a, &mut fa);
-        self.faces_of(b, &mut fb);
-        let (pa, pb) = (self.position(a), self.position(b));
-        if fa.is_empty() || fb.is_empty() || he.face_component(fa[0]) != he.face_component(fb[0]) {
-            return None;
-        }
-        let mut reached: HashMap<u32, Reached> = HashMap::default();
-        let mut heap = BinaryHeap::new();
-        for &f in &fa {
-            let cost = (self.face_centroid(f) - pa).length();
-            reached.insert(f, Reached { cost, from_face: INVALID, via: INVALID });
-            heap.push(Open { estimate: cost + (self.face_centroid(f) - pb).length(), cost, face: f });
-        }
-        let goal = loop {
-            let Open { cost, face, .. } = heap.pop()?;
-            if reached.get(&face).is_some_and(|r| r.cost < cost) {
-                continue; // a stale entry
-            }
-            if fb.contains(&face) {
-                break face;
-            }
-            let c = self.face_centroid(face);
-            for h in he.face_halfedges(face) {
-                let t = he.twin(h);
-                if t == INVALID {
-                    continue;
-                }
-                let g = he.face(t);
-                let cg = self.face_centroid(g);
-                let next = cost + (cg - c).length();
-                if reached.get(&g).is_none_or(|r| next < r.cost) {
-                    reached.insert(g, Reached { cost: next, from_face: face, via: h });
-                    heap.push(Open { estimate: next + (cg - pb).length(), cost: next, face: g });
-                }
-            }
-        };
-        let mut faces = vec![goal];
-        let mut portals = Vec::new();
-        let mut f = goal;
-        while let Some(r) = reached.get(&f).filter(|r| r.from_face != INVALID) {
-            portals.push(r.via);
-            faces.push(r.from_face);
-            f = r.from_face;
-        }
-        faces.reverse();
-        portals.reverse();
-        // Trim: start at the last face holding `a`, end at the first holding `b`.
-        let first = faces.iter().rposition(|f| fa.contains(f)).unwrap_or(0);
-        let last = first + faces[first..].iter().position(|f| fb.contains(f)).unwrap_or(faces.len() - 1 - first);
-        Some((faces[first..=last].to_vec(), portals[first..last].to_vec()))
+/// The chain of faces from a face holding `a` to one holding `b`, with
+/// the halfedge of each face crossed into the next (`portals[i]` is in
+/// `faces[i]`, its twin in `faces[i + 1]`). `None` when no chain exists
+/// (the two points are on different components).
+fn face_strip(surface: &Surface, a: Location, b: Location) -> Option<(Vec<u32>, Vec<u32>)> {
+    let he = &surface.halfedges;
+    let (mut fa, mut fb) = (Vec::new(), Vec::new());
+    surface.faces_of(a, &mut fa);
+    surface.faces_of(b, &mut fb);
+    let (pa, pb) = (surface.position(a), surface.position(b));
+    if fa.is_empty() || fb.is_empty() || he.face_component(fa[0]) != he.face_component(fb[0]) {
+        return None;
     }
-
-    /// The shortest path from `a` to `b` inside a strip of faces (see the
-    /// module documentation). Crossings within `tol` of a vertex snap to it.
-    /// Fails only when `a` and `b` lie on different connected components.
-    pub fn trace_in_strip(&self, a: Location, b: Location, tol: f64, out: &mut Path) -> Result<(), TraceFailure> {
-        out.points.clear();
-        out.faces.clear();
-        let (faces, portals) = self.face_strip(a, b).ok_or(TraceFailure::Disconnected)?;
-        let he = &self.halfedges;
-        let c = &self.corners_2d;
-        // Unfold: face i's plane maps into the common plane by z -> offset + scale * z.
-        let mut sim = vec![(DVec2::new(1.0, 0.0), DVec2::ZERO)];
-        // Funnel portals (left, right) seen walking from a to b; the first and last are a and b.
-        let pa = self.position_2d(faces[0], a);
-        let mut funnel = vec![(Corner { p: pa, vertex: INVALID }, Corner { p: pa, vertex: INVALID })];
-        for (i, &h) in portals.iter().enumerate() {
-            let (scale, offset) = sim[i];
-            let map = |z: DVec2| offset + cmul(scale, z);
-            let (tail, head) = (map(c[h as usize]), map(c[he.next(h) as usize]));
-            // Leaving a face through its counter-clockwise halfedge h, the head is on the left.
-            funnel.push((Corner { p: head, vertex: he.head(h) }, Corner { p: tail, vertex: he.tail(h) }));
+    let mut reached: HashMap<u32, Reached> = HashMap::default();
+    let mut heap = BinaryHeap::new();
+    for &f in &fa {
+        let cost = (face_centroid(surface, f) - pa).length();
+        reached.insert(f, Reached { cost, from_face: INVALID, via: INVALID });
+        heap.push(Open { estimate: cost + (face_centroid(surface, f) - pb).length(), cost, face: f });
+    }
+    let goal = loop {
+        let Open { cost, face, .. } = heap.pop()?;
+        if reached.get(&face).is_some_and(|r| r.cost < cost) {
+            continue; // a stale entry
+        }
+        if fb.contains(&face) {
+            break face;
+        }
+        let c = face_centroid(surface, face);
+        for h in he.face_halfedges(face) {
             let t = he.twin(h);
-            let (zt, zn) = (c[t as usize], c[he.next(t) as usize]); // head(h), tail(h) in the next face
-            let s = cdiv(head - tail, zt - zn);
-            sim.push((s, tail - cmul(s, zn)));
-        }
-        let (scale, offset) = sim[faces.len() - 1];
-        let pb = offset + cmul(scale, self.position_2d(faces[faces.len() - 1], b));
-        funnel.push((Corner { p: pb, vertex: INVALID }, Corner { p: pb, vertex: INVALID }));
-        let apices = string_pull(&funnel);
-
-        // Walk the portals between consecutive apices; a crossing leaves into
-        // the face after its portal, an apex vertex into the last face of the
-        // run of portals that share it.
-        let leave_face_of_vertex = |v: u32, from: usize| -> u32 {
-            let mut q = from;
-            while q < portals.len() && (he.tail(portals[q]) == v || he.head(portals[q]) == v) {
-                q += 1;
+            if t == INVALID {
+                continue;
             }
-            faces[q]
-        };
-        push_point(out, a, faces[0]);
-        for w in apices.windows(2) {
-            let ((p0, i0), (p1, i1)) = (w[0], w[1]);
-            for m in i0.max(1)..i1 {
-                // Funnel portal m is strip portal m - 1, between faces m - 1 and m.
-                let h = portals[m - 1];
-                let (l, r) = funnel[m];
-                if l.same(&p0) || r.same(&p0) || l.same(&p1) || r.same(&p1) {
-                    continue; // the path passes this portal at an apex vertex
-                }
-                let e = l.p - r.p;
-                let den = cross(p1.p - p0.p, e);
-                let u = if den.abs() > 0.0 { (cross(p1.p - p0.p, p0.p - r.p) / den).clamp(0.0, 1.0) } else { 0.5 };
-                let len = (self.points[he.head(h) as usize] - self.points[he.tail(h) as usize]).length();
-                let x = if u * len <= tol {
-                    Location::Vertex(he.tail(h))
-                } else if (1.0 - u) * len <= tol {
-                    Location::Vertex(he.head(h))
-                } else {
-                    self.edge_location(h, u)
-                };
-                let leave = match x {
-                    Location::Vertex(v) => leave_face_of_vertex(v, m - 1),
-                    _ => faces[m],
-                };
-                push_point(out, x, leave);
-            }
-            if i1 + 1 < funnel.len() {
-                // An intermediate apex: a mesh vertex at funnel portal i1.
-                push_point(out, Location::Vertex(p1.vertex), leave_face_of_vertex(p1.vertex, i1 - 1));
+            let g = he.face(t);
+            let cg = face_centroid(surface, g);
+            let next = cost + (cg - c).length();
+            if reached.get(&g).is_none_or(|r| next < r.cost) {
+                reached.insert(g, Reached { cost: next, from_face: face, via: h });
+                heap.push(Open { estimate: next + (cg - pb).length(), cost: next, face: g });
             }
         }
-        match (out.points.last(), b) {
-            (Some(&Location::Vertex(p)), Location::Vertex(v)) if p == v => {
-                out.faces.pop(); // the last crossing snapped onto b
-            }
-            _ => out.points.push(b),
-        }
-        if out.points.len() < 2 {
-            return Err(TraceFailure::Lost);
-        }
-        Ok(())
+    };
+    let mut faces = vec![goal];
+    let mut portals = Vec::new();
+    let mut f = goal;
+    while let Some(r) = reached.get(&f).filter(|r| r.from_face != INVALID) {
+        portals.push(r.via);
+        faces.push(r.from_face);
+        f = r.from_face;
     }
+    faces.reverse();
+    portals.reverse();
+    // Trim: start at the last face holding `a`, end at the first holding `b`.
+    let first = faces.iter().rposition(|f| fa.contains(f)).unwrap_or(0);
+    let last = first + faces[first..].iter().position(|f| fb.contains(f)).unwrap_or(faces.len() - 1 - first);
+    Some((faces[first..=last].to_vec(), portals[first..last].to_vec()))
+}
+
+/// The shortest path from `a` to `b` inside a strip of faces (see the
+/// module documentation). Crossings within `tol` of a vertex snap to it.
+/// Fails only when `a` and `b` lie on different connected components.
+pub fn trace_in_strip(
+    surface: &Surface,
+    a: Location,
+    b: Location,
+    tol: f64,
+    out: &mut Path,
+) -> Result<(), TraceFailure> {
+    out.points.clear();
+    out.faces.clear();
+    let (faces, portals) = face_strip(surface, a, b).ok_or(TraceFailure::Disconnected)?;
+    let he = &surface.halfedges;
+    let c = &surface.corners_2d;
+    // Unfold: face i's plane maps into the common plane by z -> offset + scale * z.
+    let mut sim = vec![(DVec2::new(1.0, 0.0), DVec2::ZERO)];
+    // Funnel portals (left, right) seen walking from a to b; the first and last are a and b.
+    let pa = surface.position_2d(faces[0], a);
+    let mut funnel = vec![(Corner { p: pa, vertex: INVALID }, Corner { p: pa, vertex: INVALID })];
+    for (i, &h) in portals.iter().enumerate() {
+        let (scale, offset) = sim[i];
+        let map = |z: DVec2| offset + cmul(scale, z);
+        let (tail, head) = (map(c[h as usize]), map(c[he.next(h) as usize]));
+        // Leaving a face through its counter-clockwise halfedge h, the head is on the left.
+        funnel.push((Corner { p: head, vertex: he.head(h) }, Corner { p: tail, vertex: he.tail(h) }));
+        let t = he.twin(h);
+        let (zt, zn) = (c[t as usize], c[he.next(t) as usize]); // head(h), tail(h) in the next face
+        let s = cdiv(head - tail, zt - zn);
+        sim.push((s, tail - cmul(s, zn)));
+    }
+    let (scale, offset) = sim[faces.len() - 1];
+    let pb = offset + cmul(scale, surface.position_2d(faces[faces.len() - 1], b));
+    funnel.push((Corner { p: pb, vertex: INVALID }, Corner { p: pb, vertex: INVALID }));
+    let apices = string_pull(&funnel);
+
+    // Walk the portals between consecutive apices; a crossing leaves into
+    // the face after its portal, an apex vertex into the last face of the
+    // run of portals that share it.
+    let leave_face_of_vertex = |v: u32, from: usize| -> u32 {
+        let mut q = from;
+        while q < portals.len() && (he.tail(portals[q]) == v || he.head(portals[q]) == v) {
+            q += 1;
+        }
+        faces[q]
+    };
+    push_point(out, a, faces[0]);
+    for w in apices.windows(2) {
+        let ((p0, i0), (p1, i1)) = (w[0], w[1]);
+        for m in i0.max(1)..i1 {
+            // Funnel portal m is strip portal m - 1, between faces m - 1 and m.
+            let h = portals[m - 1];
+            let (l, r) = funnel[m];
+            if l.same(&p0) || r.same(&p0) || l.same(&p1) || r.same(&p1) {
+                continue; // the path passes this portal at an apex vertex
+            }
+            let e = l.p - r.p;
+            let den = cross(p1.p - p0.p, e);
+            let u = if den.abs() > 0.0 { (cross(p1.p - p0.p, p0.p - r.p) / den).clamp(0.0, 1.0) } else { 0.5 };
+            let len = (surface.points[he.head(h) as usize] - surface.points[he.tail(h) as usize]).length();
+            let x = if u * len <= tol {
+                Location::Vertex(he.tail(h))
+            } else if (1.0 - u) * len <= tol {
+                Location::Vertex(he.head(h))
+            } else {
+                surface.edge_location(h, u)
+            };
+            let leave = match x {
+                Location::Vertex(v) => leave_face_of_vertex(v, m - 1),
+                _ => faces[m],
+            };
+            push_point(out, x, leave);
+        }
+        if i1 + 1 < funnel.len() {
+            // An intermediate apex: a mesh vertex at funnel portal i1.
+            push_point(out, Location::Vertex(p1.vertex), leave_face_of_vertex(p1.vertex, i1 - 1));
+        }
+    }
+    match (out.points.last(), b) {
+        (Some(&Location::Vertex(p)), Location::Vertex(v)) if p == v => {
+            out.faces.pop(); // the last crossing snapped onto b
+        }
+        _ => out.points.push(b),
+    }
+    if out.points.len() < 2 {
+        return Err(TraceFailure::Lost);
+    }
+    Ok(())
 }
 
 /// Appends a path point and the face the path leaves it into; a vertex

@@ -1,0 +1,106 @@
+//! Binding stages 4 and 5: the cut-aware Laplacian assembled face by face
+//! (each cut-face's polygon Laplacian, paper §4.2), split by corner into
+//! `VᵀL_hV` (the system matrix) and `VᵀL_hC` (`b`, the map from constraint
+//! rows to the right-hand side), and the factorisation of `VᵀL_hV`.
+
+use crate::cancel::Cancel;
+use crate::cholesky::{Cholesky, SymmetricTriplets};
+use crate::error::{Error, Result};
+use crate::polygon_laplacian::{PolygonScratch, polygon_laplacian};
+use crate::sparse::Csr;
+
+use super::cut::CutMesh;
+use super::{BindWarning, Corner};
+use crate::ids::MeshVertex;
+
+/// The assembled Laplacian.
+#[derive(Debug)]
+pub(crate) struct Assembled {
+    /// Per-cut-face Laplacians, row-major, concatenated.
+    pub face_laplacian: Vec<f64>,
+    /// Where each cut-face's square starts in `face_laplacian` (one more than faces).
+    pub face_laplacian_start: Vec<u32>,
+    /// Lower triangle of `VᵀL_hV` as (row, column, value) triplets.
+    pub system: Vec<(u32, u32, f64)>,
+    /// `VᵀL_hC`: unknowns × constraint rows.
+    pub b: Csr,
+}
+
+/// Assembles the Laplacian of `cut` with corners classified as `corner`.
+/// Zero-area cut-faces contribute nothing (reported in `warnings`).
+pub(crate) fn assemble(
+    cut: &CutMesh,
+    corner: &[Corner],
+    (n_unknowns, n_rows): (usize, usize),
+    lambda: f64,
+    cancel: &Cancel,
+    warnings: &mut Vec<BindWarning>,
+) -> Result<Assembled> {
+    let mut system = Vec::new();
+    let mut b_entries: Vec<(u32, u32, f64)> = Vec::new();
+    let mut face_laplacian = Vec::new();
+    let mut face_laplacian_start = vec![0u32];
+    let mut scratch = PolygonScratch::default();
+    let mut lf = Vec::new();
+    let mut corners = Vec::new();
+    let mut degenerate = 0usize;
+    for f in 0..cut.n_faces() as u32 {
+        cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
+        let hs = cut.face_halfedges(f);
+        corners.clear();
+        corners.extend(hs.clone().map(|h| cut.vertex(cut.tail(h)).pos));
+        let n = corners.len();
+        if polygon_laplacian(&corners, lambda, &mut scratch, &mut lf).is_none() {
+            degenerate += 1;
+            lf.clear();
+            lf.resize(n * n, 0.0);
+        }
+        face_laplacian.extend_from_slice(&lf);
+        face_laplacian_start.push(face_laplacian.len() as u32);
+        let base = hs.start as usize;
+        for j in 0..n {
+            let Corner::Unknown(uj) = corner[base + j] else { continue };
+            for k in 0..n {
+                let l = lf[j * n + k];
+                if l == 0.0 {
+                    continue;
+                }
+                match corner[base + k] {
+                    Corner::Unknown(uk) if uk <= uj => system.push((uj.0, uk.0, l)),
+                    Corner::Constraint(r) => b_entries.push((uj.0, r.0, l)),
+                    _ => {}
+                }
+            }
+        }
+    }
+    if degenerate > 0 {
+        warnings.push(BindWarning::DegenerateCutFaces { count: degenerate });
+    }
+    let b = Csr::from_triplets(n_unknowns, n_rows, b_entries);
+    Ok(Assembled { face_laplacian, face_laplacian_start, system, b })
+}
+
+/// Factors `VᵀL_hV`. A pivot that fails is named by its mesh vertex and
+/// component: every unknown's component is constrained, so this is a bug or
+/// a numerically degenerate mesh there, not bad input the caller can fix.
+pub(crate) fn factor(
+    system: Vec<(u32, u32, f64)>,
+    unknown_vertex: &[MeshVertex],
+    vertex_component: &[u32],
+) -> Result<Cholesky> {
+    let n = unknown_vertex.len();
+    if n == 0 {
+        return Cholesky::new(&SymmetricTriplets { n: 0, entries: Vec::new() });
+    }
+    Cholesky::new(&SymmetricTriplets { n, entries: system }).map_err(|e| match e {
+        Error::NotPositiveDefinite { pivot } => {
+            let at = pivot.and_then(|u| unknown_vertex.get(u)).map_or(String::new(), |v| {
+                format!(" (first failing pivot at mesh vertex {v}, component {})", vertex_component[v.index()])
+            });
+            Error::Internal {
+                what: format!("VᵀLV is not positive definite although every unknown's component is constrained{at}"),
+            }
+        }
+        other => other,
+    })
+}

@@ -1,0 +1,178 @@
+//! Binding stage 3: what every corner (cut halfedge) takes its value from —
+//! a constraint row (a slot of its segment end, or the crossing row of the
+//! segment its cut-vertex lies on), an unknown (a mesh vertex off the
+//! curvenet in a component the curvenet touches), or nothing (a vertex of
+//! an untouched component, which passes through) — and the numbering of the
+//! unknowns.
+
+use rustc_hash::FxHashMap as HashMap;
+
+use crate::curvenet::Side;
+use crate::error::{Error, Result};
+use crate::halfedge::INVALID;
+use crate::ids::{ConstraintRow, MeshVertex, Unknown};
+
+use super::cut::{CROSSING, CutMesh, MESH_VERTEX, SAMPLE};
+use super::join::{HEAD, Joined, TAIL};
+use super::{BindWarning, Corner, CrossingRow, Surface};
+
+/// The corners' classification.
+#[derive(Debug)]
+pub(crate) struct Classified {
+    /// Per cut halfedge.
+    pub corner: Vec<Corner>,
+    /// Constraint rows after the slots: one per (crossing cut-vertex, segment, side).
+    pub crossings: Vec<CrossingRow>,
+    /// Per mesh vertex: whether the curvenet passes through it.
+    pub vertex_is_curve: Vec<bool>,
+    /// Per mesh vertex: its connected component, or INVALID in no face.
+    pub vertex_component: Vec<u32>,
+    /// The mesh vertex of each unknown.
+    pub unknown_vertex: Vec<MeshVertex>,
+    /// Per mesh vertex: its unknown, if it has one.
+    pub vertex_unknown: Vec<Option<Unknown>>,
+}
+
+impl Classified {
+    /// Number of constraint rows (slots, then crossing rows).
+    pub fn n_rows(&self, joined: &Joined) -> usize {
+        joined.n_slots as usize + self.crossings.len()
+    }
+}
+
+/// Classifies the corners of `cut`. Components no curvenet touches are
+/// refused with `strict`, otherwise reported in `warnings`.
+pub(crate) fn classify(
+    surface: &Surface,
+    cut: &CutMesh,
+    joined: &Joined,
+    strict: bool,
+    cancel: &crate::cancel::Cancel,
+    warnings: &mut Vec<BindWarning>,
+) -> Result<Classified> {
+    let n_vertices = surface.mesh.n_vertices();
+    let mut corner = vec![Corner::Fixed; cut.n_halfedges()];
+    let mut crossings: Vec<CrossingRow> = Vec::new();
+    let mut crossing_row: HashMap<(u32, u32, Side), u32> = HashMap::default();
+    let mut vertex_is_curve = vec![false; n_vertices];
+    for h in 0..cut.n_halfedges() as u32 {
+        cancel.check_every(h as usize, "assembly")?;
+        let v = cut.tail(h);
+        let cv = cut.vertex(v);
+        if cv.mask & (SAMPLE | CROSSING) == 0 {
+            continue; // a plain mesh vertex: decided below
+        }
+        if cv.mask & MESH_VERTEX != 0 {
+            vertex_is_curve[v as usize] = true;
+        }
+        let (seg, side, end) = curve_side(cut, h).ok_or_else(|| Error::Internal {
+            what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it"),
+        })?;
+        // A vertex the segment's path passes through takes a crossing row
+        // of that segment; one of its samples, the sample's slot.
+        let row = match cut.crossing_t(v, seg) {
+            Some(t) => {
+                let key = (v, seg, side);
+                match crossing_row.get(&key) {
+                    Some(&r) => r,
+                    None => {
+                        let lo = joined.slot(seg, TAIL, side)?;
+                        let hi = joined.slot(seg, HEAD, side)?;
+                        let r = joined.n_slots + crossings.len() as u32;
+                        crossings.push(CrossingRow { lo, hi, t, vertex: v });
+                        crossing_row.insert(key, r);
+                        r
+                    }
+                }
+            }
+            None => joined.slot(seg, end, side)?,
+        };
+        corner[h as usize] = Corner::Constraint(ConstraintRow(row));
+    }
+
+    // Components touched by the curvenet.
+    let he = &surface.halfedges;
+    let mut touched = vec![false; he.n_components()];
+    for h in 0..cut.n_halfedges() as u32 {
+        if matches!(corner[h as usize], Corner::Constraint(_)) {
+            touched[he.face_component(cut.parent(cut.face(h))) as usize] = true;
+        }
+    }
+    let mut component_vertices = vec![0usize; he.n_components()];
+    let mut vertex_component = vec![INVALID; n_vertices];
+    for f in 0..surface.mesh.n_faces() {
+        for &v in surface.mesh.face(f) {
+            vertex_component[v as usize] = he.face_component(f as u32);
+        }
+    }
+    for &c in &vertex_component {
+        if c != INVALID {
+            component_vertices[c as usize] += 1;
+        }
+    }
+    for (c, &t) in touched.iter().enumerate() {
+        if !t {
+            if strict {
+                return Err(Error::UntouchedComponent { component: c, vertices: component_vertices[c] });
+            }
+            warnings.push(BindWarning::UntouchedComponent { component: c, vertices: component_vertices[c] });
+        }
+    }
+    let mut vertex_unknown = vec![None; n_vertices];
+    let mut unknown_vertex = Vec::new();
+    for v in 0..n_vertices {
+        let c = vertex_component[v];
+        if c != INVALID && touched[c as usize] && !vertex_is_curve[v] {
+            vertex_unknown[v] = Some(Unknown(unknown_vertex.len() as u32));
+            unknown_vertex.push(MeshVertex(v as u32));
+        }
+    }
+    for h in 0..cut.n_halfedges() as u32 {
+        if corner[h as usize] == Corner::Fixed {
+            // Corners of plain mesh vertices: cut-vertex ids below the mesh's
+            // vertex count are the mesh's vertices (`CutMesh`).
+            if let Some(u) = vertex_unknown.get(cut.tail(h) as usize).copied().flatten() {
+                corner[h as usize] = Corner::Unknown(u);
+            }
+        }
+    }
+    Ok(Classified { corner, crossings, vertex_is_curve, vertex_component, unknown_vertex, vertex_unknown })
+}
+
+/// For the corner at `tail(h)`: the curve halfedge bounding its sector (the
+/// nearest clockwise, else the nearest counter-clockwise when the mesh
+/// boundary intervenes), as (segment, side of the corner, which end of the
+/// segment the cut-vertex is: TAIL or HEAD).
+fn curve_side(cut: &CutMesh, h: u32) -> Option<(u32, Side, u8)> {
+    // Clockwise: g = outgoing, the corner lies to the left of g.
+    let mut g = h;
+    for _ in 0..cut.n_halfedges() {
+        if let Some((s, fwd)) = cut.segment(g) {
+            // g leaves the vertex: forward means the vertex is the segment's tail side.
+            return Some((s, if fwd { Side::Plus } else { Side::Minus }, if fwd { TAIL } else { HEAD }));
+        }
+        let t = cut.twin(g);
+        if t == INVALID {
+            break;
+        }
+        g = cut.next(t);
+        if g == h {
+            return None;
+        }
+    }
+    // Counter-clockwise: p = incoming, the corner lies to the left of p.
+    let mut g = h;
+    for _ in 0..cut.n_halfedges() {
+        let p = cut.prev(g);
+        if let Some((s, fwd)) = cut.segment(p) {
+            // p arrives at the vertex: forward means the vertex is the segment's head side.
+            return Some((s, if fwd { Side::Plus } else { Side::Minus }, if fwd { HEAD } else { TAIL }));
+        }
+        let t = cut.twin(p);
+        if t == INVALID || t == h {
+            return None;
+        }
+        g = t;
+    }
+    None
+}

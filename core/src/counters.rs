@@ -1,0 +1,27 @@
+//! Process-wide counters of the binding's expensive steps, for tests that
+//! check a frame never rebuilds the binding (`tests/rebuild_count.rs`).
+//! Compiled only with the `counters` feature, so library builds carry no
+//! test instrumentation.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+static CUT_MESH_BUILDS: AtomicUsize = AtomicUsize::new(0);
+static NUMERIC_FACTORIZATIONS: AtomicUsize = AtomicUsize::new(0);
+
+/// How many cut-meshes this process has built.
+pub fn cut_mesh_builds() -> usize {
+    CUT_MESH_BUILDS.load(Ordering::Relaxed)
+}
+
+/// How many numeric factorisations this process has computed.
+pub fn numeric_factorizations() -> usize {
+    NUMERIC_FACTORIZATIONS.load(Ordering::Relaxed)
+}
+
+pub(crate) fn cut_mesh_built() {
+    CUT_MESH_BUILDS.fetch_add(1, Ordering::Relaxed);
+}
+
+pub(crate) fn numeric_factorization_done() {
+    NUMERIC_FACTORIZATIONS.fetch_add(1, Ordering::Relaxed);
+}
