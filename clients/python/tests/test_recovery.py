@@ -141,7 +141,10 @@ def test_saturation_without_retries_raises_with_the_servers_code(start_server) -
     """A batch holds the only solve permit; a frame sent meanwhile with no
     retries raises SaturatedError carrying `saturated`, 503 and Retry-After."""
     mesh, times, frames = shot_frames("hand_wave")
-    server = start_server("--max-solves", "1", "--solve-threads", "1")
+    # No waiting in line (--queue-timeout 0): a frame that finds the permit
+    # taken is answered 503 at once. With a wait, the line is first come first
+    # served, so the impatient frame would get the permit after the batch.
+    server = start_server("--max-solves", "1", "--solve-threads", "1", "--queue-timeout", "0")
     # The loader retries often and fast, so that it gets the permit back
     # between the impatient client's frames.
     with Client(server.url, retries=10_000, max_backoff=0.05) as busy, Client(server.url, retries=0) as impatient:

@@ -22,8 +22,8 @@ use rustc_hash::FxHashMap as HashMap;
 use glam::{DVec2, DVec3};
 
 use super::locate::Location;
+use super::path::{Path, PathMethod, TraceFailure};
 use super::surface::{Surface, segments_cross};
-use super::trace::{Path, PathMethod, TraceFailure};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
 use crate::halfedge::INVALID;
 

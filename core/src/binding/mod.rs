@@ -34,6 +34,7 @@ pub mod cut;
 mod drawing;
 mod join;
 pub mod locate;
+pub mod path;
 mod rhs;
 pub mod strip;
 pub mod surface;

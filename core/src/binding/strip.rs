@@ -24,7 +24,7 @@
 //! 4. **Path.** Between consecutive apices the path crosses every portal
 //!    once, at an edge parameter; an apex is a mesh vertex the path passes
 //!    through. Each piece of the path lies in the face between two
-//!    portals, as [`super::trace::Path`] requires.
+//!    portals, as [`super::path::Path`] requires.
 //!
 //! The result is a geodesic within the strip (exact on planar faces), not
 //! necessarily the global geodesic: the strip comes from centroid
@@ -37,8 +37,8 @@ use glam::{DVec2, DVec3};
 use rustc_hash::FxHashMap as HashMap;
 
 use super::locate::Location;
+use super::path::{Path, TraceFailure};
 use super::surface::Surface;
-use super::trace::{Path, TraceFailure};
 use crate::halfedge::INVALID;
 
 /// A face on the A* frontier.

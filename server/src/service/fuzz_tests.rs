@@ -263,7 +263,7 @@ proptest! {
         let body = serde_json::to_vec(&req).unwrap();
         let limits = crate::limits::WorkLimits::default();
         let (r, peak) = peak_of(|| -> Result<(), crate::error::ServiceError> {
-            let parsed: curvenet_schema::wire::BindingRequest = crate::routes::parse_json(&body)?;
+            let parsed: curvenet_schema::wire::BindingRequest = crate::extract::parse_json(&body)?;
             crate::binding::validate(&parsed)?;
             crate::binding::EffectiveOptions::of(&parsed)?;
             crate::binding::predict(&parsed, &limits)?;
@@ -280,7 +280,7 @@ proptest! {
 fn the_unmutated_request_passes_and_the_allocator_counts() {
     let body = serde_json::to_vec(&base_request()).unwrap();
     let (r, peak) = peak_of(|| {
-        let parsed: curvenet_schema::wire::BindingRequest = crate::routes::parse_json(&body).unwrap();
+        let parsed: curvenet_schema::wire::BindingRequest = crate::extract::parse_json(&body).unwrap();
         crate::binding::validate(&parsed).and_then(|()| crate::binding::predict(&parsed, &Default::default()))
     });
     assert!(r.is_ok(), "{:?}", r.err());

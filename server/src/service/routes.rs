@@ -25,10 +25,6 @@ use crate::extract::too_large;
 use crate::state::{AppState, panic_message};
 use crate::{bake, batches, bindings, deform, frames, operations, viewer};
 
-// viewer.rs calls these by their paths here.
-pub(crate) use crate::bindings::bind;
-pub(crate) use crate::extract::{Params, form, lookup, parse_json, read_body};
-
 /// The whole service: `/v1` API, `/healthz`, `/readyz`, `/metrics`, `/openapi.json`.
 pub fn app(state: AppState) -> Router {
     let open = Router::new()

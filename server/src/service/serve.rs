@@ -1,6 +1,6 @@
 //! Serving the router over TCP (HTTP/1.1, hyper): the connection cap, the
 //! header and idle keep-alive timeouts, and graceful shutdown with an
-//! enforced deadline. (The body timeouts are in `routes::read_body`, where
+//! enforced deadline. (The body timeouts are in `extract::read_body`, where
 //! bodies are read.)
 //!
 //! Every connection has a watchdog that sees three things: whether a
@@ -51,7 +51,7 @@ pub const DEFAULT_BODY_MIN_RATE: u64 = 16 << 10;
 /// Default cap on connections open at once.
 pub const DEFAULT_MAX_CONNECTIONS: usize = 512;
 
-/// Connection limits and timeouts (see the module docs and `routes::read_body`).
+/// Connection limits and timeouts (see the module docs and `extract::read_body`).
 #[derive(Debug, Clone, Copy)]
 pub struct ConnectionLimits {
     /// A request head must arrive within this time of its first byte.

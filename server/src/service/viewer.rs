@@ -12,8 +12,9 @@
 //! POST /v1/bindings/{id}/viewer-frame                     a FrameRequest, solved: a ViewerFrame
 //! ```
 //!
-//! Frames solve through the service's own path (`frames::validate`,
-//! `frames::solve`, a solve permit, the solve pool); the posed curvenet's
+//! Frames solve through the service's one solve helper
+//! (`solve::solve_frames`: a solve permit, the solve pool, validation,
+//! `Deformer::frame`, the frame metrics); the posed curvenet's
 //! samples and scaled frames come from `Binding::curvenet_pose`, the
 //! samples and frames the solve itself uses. Positions are sent as flat
 //! `f32` arrays (`[x0, y0, z0, x1, ...]`) to keep the JSON small.
@@ -27,9 +28,9 @@
 use std::sync::{Arc, Mutex};
 
 use axum::Json;
-use axum::body::Body;
+
 use axum::extract::State;
-use axum::http::{HeaderMap, HeaderValue, header};
+use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use curvenet_core::binding::Surface;
 use curvenet_core::binding::{CROSSING, MESH_VERTEX, SAMPLE};
@@ -50,8 +51,9 @@ use highlight::{NetGeometry, Scene};
 
 use crate::cache::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
-use crate::frames::{self, Frame};
-use crate::routes::Params;
+use crate::extract::{Admission, Admitted, CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
+use crate::frames::{Frame, Solved};
+use crate::solve::{Numbering, solve_frames};
 use crate::state::{AppState, blocking};
 
 /// The page and its assets, built into the binary.
@@ -380,7 +382,7 @@ async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry
         return Ok((e, true));
     }
     let (entry, cached) =
-        crate::routes::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
+        crate::bindings::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
     *stage.bound.lock().unwrap_or_else(|e| e.into_inner()) = Some(entry.id.clone());
     Ok((entry, cached))
 }
@@ -464,7 +466,9 @@ pub(crate) async fn stage_frame(
     })
     .await?;
     let context = format!("{} frame {time}", stage.mesh);
-    let mut frame = solve_frame(&state, entry, Frame::from(request)).await.map_err(|e| e.context(&context))?;
+    let admission = Admission::one(&state).await?;
+    let mut frame =
+        solve_frame(&state, admission, entry, Frame::from(request)).await.map_err(|e| e.context(&context))?;
     frame.time = Some(time);
     Ok(Json(frame))
 }
@@ -480,7 +484,7 @@ pub(crate) async fn viewer_data(
     State(state): State<AppState>,
     Params(id): Params<String>,
 ) -> Result<Response, ServiceError> {
-    let entry = crate::routes::lookup(&state, &id).await?;
+    let entry = crate::extract::lookup(&state, &id).await?;
     let bytes = blocking(move || serde_json::to_vec(&data(&entry)).map_err(ServiceError::internal_from)).await?;
     Ok(([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], bytes).into_response())
 }
@@ -498,57 +502,67 @@ pub(crate) async fn viewer_data(
     ))]
 pub(crate) async fn viewer_frame(
     State(state): State<AppState>,
-    Params(id): Params<String>,
-    headers: HeaderMap,
-    body: Body,
+    _json: ContentType<JsonOnly>,
+    CachedBinding(entry): CachedBinding,
+    Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
 ) -> Result<Json<ViewerFrame>, ServiceError> {
-    crate::routes::form(&headers, false)?;
-    let entry = crate::routes::lookup(&state, &id).await?;
-    let bytes = crate::routes::read_body(&state, body).await?;
-    let request: FrameRequest = crate::routes::parse_json(&bytes)?;
-    Ok(Json(solve_frame(&state, entry, Frame::from(request)).await?))
+    let frame = Frame::from(parse_json::<FrameRequest>(&bytes)?);
+    Ok(Json(solve_frame(&state, admission, entry, frame).await?))
 }
 
-/// Validates and solves `frame` as `POST /v1/bindings/{id}/frames` does (a
-/// solve permit, the solve pool, the frame metrics), then evaluates the
-/// posed curvenets.
-async fn solve_frame(state: &AppState, entry: Arc<Entry>, frame: Frame) -> Result<ViewerFrame, ServiceError> {
-    let permit = state.permit().await?;
-    let metrics = state.inner.metrics.clone();
-    state
-        .on_pool(move || {
-            let _permit = permit;
-            frames::validate(&entry, &frame)?;
-            let solved = frames::solve(&entry, &frame)?;
-            metrics.solve_seconds.record(solved.solve_ms / 1e3);
-            metrics.frames_solved.increment(1);
-            let b = entry.binding();
-            let poses = |posed: &[Option<&[[f64; 3]]>]| {
-                (0..b.n_curvenets())
-                    .map(|k| {
-                        let (samples, frames) = b
-                            .curvenet_pose(k, posed.get(k).copied().flatten(), frame.rest.as_deref())
-                            .map_err(|e| ServiceError::core(e, Phase::Frame).context(&format!("curvenet {k}")))?;
-                        Ok(PoseView { samples: flat(&samples), frames: flat_frames(&frames) })
-                    })
-                    .collect::<Result<Vec<_>, ServiceError>>()
-            };
-            let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
-            let curvenets = poses(&posed)?;
-            let rest = match frame.rest.as_deref() {
-                Some(r) => Some(RestView { points: flat(r), cut_points: cut_points(b, r), curvenets: poses(&[])? }),
-                None => None,
-            };
-            Ok(ViewerFrame {
-                time: None,
-                cut_points: cut_points(b, &solved.points),
-                points: flat(&solved.points),
-                solve_ms: solved.solve_ms,
-                curvenets,
-                rest,
+/// Solves `frame` through the service's one solve helper (as `POST
+/// /v1/bindings/{id}/frames` does: validation, the solve pool, the frame
+/// metrics), then evaluates the posed curvenets.
+async fn solve_frame(
+    state: &AppState,
+    admission: Admission,
+    entry: Arc<Entry>,
+    frame: Frame,
+) -> Result<ViewerFrame, ServiceError> {
+    let poses = frame.clone();
+    solve_frames(
+        state,
+        admission,
+        entry,
+        Numbering::One,
+        move |_| Ok(vec![frame]),
+        move |entry, solved| {
+            let solved =
+                solved.into_iter().next().ok_or_else(|| ServiceError::internal("a frame solved to nothing"))?;
+            viewer_frame_view(entry, &poses, &solved)
+        },
+    )
+    .await
+}
+
+/// What the viewer draws of a solved frame: its points and cut-vertices,
+/// and the posed curvenets (posed, and in the frame's rest pose).
+fn viewer_frame_view(entry: &Entry, frame: &Frame, solved: &Solved) -> Result<ViewerFrame, ServiceError> {
+    let b = entry.binding();
+    let poses = |posed: &[Option<&[[f64; 3]]>]| {
+        (0..b.n_curvenets())
+            .map(|k| {
+                let (samples, frames) = b
+                    .curvenet_pose(k, posed.get(k).copied().flatten(), frame.rest.as_deref())
+                    .map_err(|e| ServiceError::core(e, Phase::Frame).context(&format!("curvenet {k}")))?;
+                Ok(PoseView { samples: flat(&samples), frames: flat_frames(&frames) })
             })
-        })
-        .await
+            .collect::<Result<Vec<_>, ServiceError>>()
+    };
+    let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
+    let curvenets = poses(&posed)?;
+    let rest = match frame.rest.as_deref() {
+        Some(r) => Some(RestView { points: flat(r), cut_points: cut_points(b, r), curvenets: poses(&[])? }),
+        None => None,
+    };
+    Ok(ViewerFrame {
+        time: None,
+        cut_points: cut_points(b, &solved.points),
+        points: flat(&solved.points),
+        solve_ms: solved.solve_ms,
+        curvenets,
+        rest,
+    })
 }
 
 // ---------------------------------------------------------------- geometry
