@@ -119,6 +119,9 @@ pub enum Error {
     /// A numeric parameter or option is out of its valid range.
     #[error("{what} must be finite and positive, got {value}")]
     InvalidParameter { what: &'static str, value: f64 },
+    /// Skinning input (influences, transforms, spline weights) refused; names the element.
+    #[error(transparent)]
+    Skinning(crate::skinning::SkinningError),
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -20,6 +20,7 @@ pub mod error;
 pub mod halfedge;
 pub mod mesh;
 pub mod polygon_laplacian;
+pub mod skinning;
 pub mod solve;
 pub mod sparse;
 
