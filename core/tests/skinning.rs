@@ -375,3 +375,38 @@ fn angle_constraints_cost_little_energy_and_still_beat_naive_skinning() {
     // More constraints can only raise the minimum; the angles keep it far below naive skinning's.
     assert!(without <= with * (1.0 + 1e-12) && with < 0.1 * naive, "{energies:?}");
 }
+
+#[test]
+fn weights_derived_from_a_surface_reproduce_weights_linear_along_the_curves() {
+    use curvenet_core::closest_point::ClosestPointBvh;
+    use curvenet_core::skinning::{DERIVED_WEIGHT_SAMPLES, SurfaceWeights, WeightField};
+    // A plane whose skin weights are linear in x (exact under barycentric
+    // interpolation), and straight curves on it: along each curve the
+    // weights are linear in t, which the Bernstein basis represents exactly.
+    let (mesh, points) = common::plane(1.0, 8);
+    let ramp = |x: f64| (x + 1.0) / 2.0;
+    let mut idx = Vec::new();
+    let mut w = Vec::new();
+    for p in &points {
+        idx.extend([0, 1]);
+        w.extend([1.0 - ramp(p[0]), ramp(p[0])]);
+    }
+    let inf = Influences::new(points.len(), 2, &idx, &w, 2).unwrap();
+    let bvh = ClosestPointBvh::new(&mesh, &points).unwrap();
+    let surface = SurfaceWeights::new(&bvh, &inf).unwrap();
+    let mut net = NetBuilder::default();
+    net.segment([-0.8, -0.5, 0.0], [0.1, 0.2, 0.0], [0.0; 3]);
+    net.segment([0.1, 0.2, 0.0], [0.7, 0.6, 0.0], [0.0; 3]);
+    net.segment([0.1, 0.2, 0.0], [0.2, -0.7, 0.0], [0.0; 3]);
+    let (derived, deviation) =
+        ControlPointWeights::from_surface(&net.points, &net.splines, &surface, DERIVED_WEIGHT_SAMPLES).unwrap();
+    let mut out = Vec::new();
+    let mut worst = 0.0f64;
+    for (k, p) in net.points.iter().enumerate() {
+        derived.at_control_point(k, *p, &mut out).unwrap();
+        let w1 = out.iter().find(|x| x.0 == 1).map_or(0.0, |x| x.1);
+        worst = worst.max((w1 - ramp(p[0])).abs());
+    }
+    eprintln!("derived weights: {deviation:.1e} from the surface's at the samples, {worst:.1e} at the control points");
+    assert!(deviation < 1e-12 && worst < 1e-12, "{deviation:e} {worst:e}");
+}

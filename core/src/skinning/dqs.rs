@@ -159,8 +159,8 @@ pub fn skin_points_dqs(
                     scaled += (*s * q) * w;
                 }
                 let w = if dq.real.dot(pivot_q) < 0.0 { -w } else { w };
-                sum.real = sum.real + dq.real * w;
-                sum.dual = sum.dual + dq.dual * w;
+                sum.real += dq.real * w;
+                sum.dual += dq.dual * w;
             }
             if !has_scale {
                 scaled = q;

@@ -40,7 +40,7 @@ mod weights;
 pub use dqs::{DualQuat, skin_points_dqs};
 pub use lbs::skin_points_lbs;
 pub use spline::{Junction, JunctionKind, SplineEnd, SplineSkinning, SplineSkinningOptions};
-pub use weights::{ControlPointWeights, SurfaceWeights, WeightField};
+pub use weights::{ControlPointWeights, DERIVED_WEIGHT_SAMPLES, SurfaceWeights, WeightField};
 
 use crate::error::{Error, Result};
 
