@@ -16,6 +16,7 @@
 
 mod error;
 mod read;
+mod skel;
 mod value;
 mod write;
 pub use write::{
@@ -25,3 +26,7 @@ pub use write::{
 
 pub use error::UsdError;
 pub use read::Stage;
+pub use skel::{
+    BLEND_SHAPE_ORDER, BlendShapeOrder, CURVENET_JOINT_INDICES, CURVENET_JOINT_WEIGHTS, CURVENET_SKINNING,
+    CurvenetSkinning, SkinRig,
+};

@@ -21,7 +21,7 @@ pub const DEFAULT_SAMPLE_DENSITY: f64 = 5.0;
 ///
 /// Not `Send`: open it in the thread that reads it.
 pub struct Stage {
-    stage: usd::Stage,
+    pub(super) stage: usd::Stage,
     path: String,
 }
 
@@ -66,7 +66,7 @@ impl Stage {
         Ok(paths)
     }
 
-    fn prim(&self, path: &str) -> Result<usd::Prim> {
+    pub(super) fn prim(&self, path: &str) -> Result<usd::Prim> {
         let prim = self.stage.prim(path).map_err(|e| UsdError::contract(path, "", format!("bad prim path: {e}")))?;
         match prim.is_valid() {
             Ok(true) => Ok(prim),
@@ -74,7 +74,7 @@ impl Stage {
         }
     }
 
-    fn type_name(&self, prim: &usd::Prim) -> Result<String> {
+    pub(super) fn type_name(&self, prim: &usd::Prim) -> Result<String> {
         let t = prim.type_name().map_err(|e| UsdError::contract(prim.path(), "", e.to_string()))?;
         Ok(t.map(|t| t.as_str().to_string()).unwrap_or_default())
     }
@@ -106,33 +106,33 @@ impl Stage {
         Ok(out)
     }
 
-    fn has_value(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
+    pub(super) fn has_value(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
         prim.attribute(name).has_authored_value().map_err(|e| UsdError::contract(prim.path(), name, e.to_string()))
     }
 
     /// The composed value of `prim.name` at `time` (`None`: the default value).
-    fn value(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Option<Value>> {
+    pub(super) fn value(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Option<Value>> {
         prim.attribute(name)
             .get_at::<Value>(time.map(usd::TimeCode::new))
             .map_err(|e| UsdError::contract(prim.path(), name, e.to_string()))
     }
 
-    fn required(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Value> {
+    pub(super) fn required(&self, prim: &usd::Prim, name: &str, time: Option<f64>) -> Result<Value> {
         self.value(prim, name, time)?.ok_or_else(|| UsdError::contract(prim.path(), name, "is missing"))
     }
 
-    fn sample_times(&self, prim: &usd::Prim, name: &str) -> Result<Vec<f64>> {
+    pub(super) fn sample_times(&self, prim: &usd::Prim, name: &str) -> Result<Vec<f64>> {
         prim.attribute(name).time_sample_times().map_err(|e| UsdError::contract(prim.path(), name, e.to_string()))
     }
 
-    fn static_value(&self, prim: &usd::Prim, name: &str) -> Result<Option<Value>> {
+    pub(super) fn static_value(&self, prim: &usd::Prim, name: &str) -> Result<Option<Value>> {
         if !self.sample_times(prim, name)?.is_empty() {
             return Err(UsdError::contract(prim.path(), name, "must not have time samples (it is static)"));
         }
         self.value(prim, name, None)
     }
 
-    fn points_value(&self, prim: &usd::Prim, name: &str, v: &Value) -> Result<Vec<[f64; 3]>> {
+    pub(super) fn points_value(&self, prim: &usd::Prim, name: &str, v: &Value) -> Result<Vec<[f64; 3]>> {
         value::points(v).ok_or_else(|| {
             UsdError::contract(prim.path(), name, format!("has type {}, expected point3f[]", value::kind(v)))
         })
@@ -230,7 +230,7 @@ impl Stage {
         })
     }
 
-    fn targets(&self, prim: &usd::Prim, rel: &str) -> Result<Vec<String>> {
+    pub(super) fn targets(&self, prim: &usd::Prim, rel: &str) -> Result<Vec<String>> {
         let targets =
             prim.relationship(rel).targets().map_err(|e| UsdError::contract(prim.path(), rel, e.to_string()))?;
         Ok(targets.iter().map(|t| t.as_str().to_string()).collect())
@@ -452,7 +452,7 @@ impl Stage {
     }
 }
 
-fn at(time: Option<f64>) -> String {
+pub(super) fn at(time: Option<f64>) -> String {
     match time {
         Some(t) => format!(" at time {t}"),
         None => String::new(),
