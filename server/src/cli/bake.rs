@@ -4,15 +4,23 @@
 //!
 //! 1. Every deformed mesh is bound once (`Binding::new` over one
 //!    `CurvenetLayout` per curvenet, sampled at the curvenet's density); the
-//!    meshes bind in parallel.
+//!    meshes bind in parallel. A mesh with a UsdSkel skin gets its rig
+//!    ([`super::rig::MeshRig`]): the skinning of the mesh and the spline
+//!    skinning of the curvenets that ask for it, precomputed once.
 //! 2. Frames go in chunks: the reading thread (the USD stage is not `Send`)
 //!    reads a chunk's posed pools, rest poses and blend-shape weights and
 //!    checks they are finite,
 //!    while the previous chunk solves on the thread pool, one `Workspace` per
 //!    worker, every (frame, mesh) pair an independent task. Results keep
-//!    frame order; the first failing frame in time order is reported. Blend
-//!    shapes are added after the deformation, mapped by each vertex's
-//!    interpolated deformation gradient (paper §5).
+//!    frame order; the first failing frame in time order is reported.
+//!    A frame of a mesh is, in order: skinning of the mesh's points by the
+//!    frame's joint transforms (blend shapes added first, UsdSkel's order,
+//!    unless `curvenet:blendShapeOrder = "afterSolve"`) → the rest pose;
+//!    spline skinning → the posed pools of the skinned curvenets (the
+//!    others: their own samples, else knot tracking over the rest pose) →
+//!    the solve → blend shapes after the deformation, mapped by each
+//!    vertex's interpolated deformation gradient (paper §5), for meshes
+//!    without a skin or asking for `afterSolve`.
 //! 3. The points (f32) are written as `over` opinions, atomically: a
 //!    temporary file beside OUTPUT, synced, renamed over it. A failed bake
 //!    leaves neither OUTPUT nor a temporary file.
@@ -24,11 +32,13 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+use curvenet_core::skinning::Mat4;
 use curvenet_core::{Binding, FrameInput, Workspace};
-use curvenet_schema::usd::{LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
+use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
 use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
 
+use super::rig::MeshRig;
 use super::{CliError, CliResult, net_list};
 
 /// Most frames' inputs held at once (two chunks: one solving, one read).
@@ -116,14 +126,26 @@ struct MeshJob {
     /// mesh's `points` are animated or differ from the projection pose).
     reads_rest: bool,
     /// The mesh's UsdSkel blend shapes, applied after the deformation in the
-    /// per-vertex frames of the interpolated gradients (paper §5).
+    /// per-vertex frames of the interpolated gradients (paper §5), or before
+    /// skinning (see `order`).
     shapes: BlendShapes,
+    /// Where the blend shapes go: before skinning (the default for a mesh
+    /// skinned in process) or after the solve (the default otherwise).
+    order: BlendShapeOrder,
+    /// The mesh's UsdSkel rig, when it is skinned in process.
+    rig: Option<MeshRig>,
+    /// A skinned mesh's bind pose when its `points` have no time samples.
+    bind_points: Option<Vec<[f64; 3]>>,
 }
 
 /// One mesh's input at one frame.
 struct MeshFrame {
     posed: Vec<Option<Vec<[f64; 3]>>>,
+    /// The rest pose read from the stage; for a skinned mesh, its points
+    /// before skinning (`None`: the bind pose read once).
     rest: Option<Vec<[f64; 3]>>,
+    /// A skinned mesh's skinning transforms this frame.
+    transforms: Option<Vec<Mat4>>,
     /// Blend-shape weights (empty when the mesh has no blend shapes).
     weights: Vec<f64>,
 }
@@ -151,8 +173,42 @@ pub fn run(args: &Args) -> CliResult {
     let frames = frames(&stage, args.frames, &inputs)?;
 
     let t_bind = Instant::now();
-    let jobs: Vec<MeshJob> =
-        pool.install(|| inputs.into_par_iter().map(|(m, n, r)| bind(m, n, r)).collect::<CliResult<_>>())?;
+    // The rigs (and what else only the stage's thread can read), then the bindings in parallel.
+    let inputs = inputs
+        .into_iter()
+        .map(|(m, n, r)| {
+            let rig = MeshRig::new(&stage, &m, &n)?;
+            let order = stage.blend_shape_order(&m)?.unwrap_or(match rig {
+                Some(_) => BlendShapeOrder::BeforeSkinning,
+                None => BlendShapeOrder::AfterSolve,
+            });
+            let bind_points = match (&rig, m.rest_sample_times.is_empty()) {
+                (Some(_), true) => Some(stage.rest_points(&m, None)?),
+                _ => None,
+            };
+            Ok((m, n, r, rig, order, bind_points))
+        })
+        .collect::<CliResult<Vec<_>>>()?;
+    for (m, _, _, rig, _, _) in &inputs {
+        if let Some(rig) = rig
+            && let Some(&p) = rig.unnormalized.first()
+        {
+            eprintln!(
+                "curvenet: warning: {}: the skin weights of {} point{} (the first: point {p}, sum {}) do not sum \
+                 to 1; they are skinned as authored, as usd-core does",
+                m.path,
+                rig.unnormalized.len(),
+                if rig.unnormalized.len() == 1 { "" } else { "s" },
+                rig.skin.influences().weight_sum(p)
+            );
+        }
+    }
+    let jobs: Vec<MeshJob> = pool.install(|| {
+        inputs
+            .into_par_iter()
+            .map(|(m, n, r, rig, order, bind_points)| bind(m, n, r, rig, order, bind_points))
+            .collect::<CliResult<_>>()
+    })?;
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
         for w in job.binding.warnings() {
@@ -166,6 +222,7 @@ pub fn run(args: &Args) -> CliResult {
         .map(|j| {
             24 * (j.nets.iter().map(|n| n.pool.len()).sum::<usize>()
                 + if j.reads_rest { j.binding.n_vertices() } else { 0 })
+                + j.rig.as_ref().map_or(0, |r| 128 * r.rig.joints.len())
         })
         .sum();
     let threads = pool.current_num_threads();
@@ -260,6 +317,12 @@ pub(super) fn frames(
         .flat_map(|(m, nets, _)| m.rest_sample_times.iter().chain(nets.iter().flat_map(|n| &n.sample_times)))
         .copied()
         .collect();
+    // A skinned mesh: the animation's joint-transform samples.
+    for (m, _, _) in inputs {
+        if let Some(rig) = stage.skin_rig(m)? {
+            times.extend(&rig.time_samples);
+        }
+    }
     times.sort_by(f64::total_cmp);
     times.dedup();
     if times.is_empty() {
@@ -272,7 +335,14 @@ pub(super) fn frames(
     Ok(times)
 }
 
-fn bind(mesh: MeshData, nets: Vec<CurvenetData>, reads_rest: bool) -> CliResult<MeshJob> {
+fn bind(
+    mesh: MeshData,
+    nets: Vec<CurvenetData>,
+    reads_rest: bool,
+    rig: Option<MeshRig>,
+    order: BlendShapeOrder,
+    bind_points: Option<Vec<[f64; 3]>>,
+) -> CliResult<MeshJob> {
     let n = mesh.projection_points.len();
     let binding = super::bind_mesh(&mesh, &nets)?;
     let shapes = mesh
@@ -285,7 +355,12 @@ fn bind(mesh: MeshData, nets: Vec<CurvenetData>, reads_rest: bool) -> CliResult<
         })
         .collect::<CliResult<Vec<_>>>()?;
     let shapes = BlendShapes::new(n, shapes);
-    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes })
+    // A skinned mesh reads its points per frame only when they are animated.
+    let reads_rest = match &rig {
+        Some(_) => !mesh.rest_sample_times.is_empty(),
+        None => reads_rest,
+    };
+    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes, order, rig, bind_points })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame
@@ -318,7 +393,14 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                         true => Vec::new(),
                         false => stage.blend_shape_weights(&job.mesh, Some(t)).map_err(at)?,
                     };
-                    Ok(MeshFrame { posed, rest, weights })
+                    let transforms = match &job.rig {
+                        Some(rig) => Some(rig.read_transforms(stage, Some(t)).map_err(|e| match e {
+                            CliError::Usd(u) => at(u),
+                            other => other,
+                        })?),
+                        None => None,
+                    };
+                    Ok(MeshFrame { posed, rest, transforms, weights })
                 })
                 .collect::<CliResult<Vec<_>>>()?;
             Ok(FrameData { time: t, meshes })
@@ -371,13 +453,44 @@ fn solve(
     solve_ns: &AtomicU64,
 ) -> CliResult<Vec<[f32; 3]>> {
     let t0 = Instant::now();
-    let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
+    let context = || format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets));
+    let core = |source| CliError::Core { context: context(), source };
+    let shapes_on = input.weights.iter().any(|&w| w != 0.0);
+    let before = shapes_on && job.order == BlendShapeOrder::BeforeSkinning;
+    // The rest pose: skinning (blend shapes first), or the stage's.
+    let rest = match (&job.rig, &input.transforms) {
+        (Some(rig), Some(transforms)) => {
+            let mut points = match (&input.rest, &job.bind_points) {
+                (Some(p), _) | (None, Some(p)) => p.clone(),
+                (None, None) => unreachable!("a skinned mesh has its bind pose"),
+            };
+            if before {
+                job.shapes.add_to(&input.weights, &mut points).map_err(core)?;
+            }
+            Some(rig.rest(&points, transforms).map_err(core)?)
+        }
+        _ if before => {
+            let mut points = input.rest.clone().unwrap_or_else(|| job.mesh.projection_points.clone());
+            job.shapes.add_to(&input.weights, &mut points).map_err(core)?;
+            Some(points)
+        }
+        _ => None,
+    };
+    let rest_ref = rest.as_deref().or(input.rest.as_deref());
+    // Spline-skinned curvenets get their pools from the frame's transforms.
+    let mut skinned: Vec<Option<Vec<[f64; 3]>>> = vec![None; job.nets.len()];
+    if let (Some(rig), Some(transforms)) = (&job.rig, &input.transforms) {
+        for (k, s) in skinned.iter_mut().enumerate() {
+            *s = rig.posed(k, transforms).map_err(core)?;
+        }
+    }
+    let posed: Vec<Option<&[[f64; 3]]>> =
+        input.posed.iter().zip(&skinned).map(|(p, s)| s.as_deref().or(p.as_deref())).collect();
     let n = job.binding.n_vertices();
     let mut out = vec![[0.0; 3]; n];
-    let frame = FrameInput { posed: &posed, rest: input.rest.as_deref() };
-    let context = || format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets));
-    // Gradients only when a blend shape is on at this frame.
-    let mut gradients = input.weights.iter().any(|&w| w != 0.0).then(|| vec![[0.0; 9]; n]);
+    let frame = FrameInput { posed: &posed, rest: rest_ref };
+    // Gradients only when a blend shape is on after the solve at this frame.
+    let mut gradients = (shapes_on && !before).then(|| vec![[0.0; 9]; n]);
     job.binding
         .deform(&frame, ws, &mut out, gradients.as_deref_mut())
         .map_err(|source| CliError::Core { context: context(), source })?;

@@ -3,6 +3,7 @@
 pub mod bake;
 pub mod bench;
 pub mod inspect;
+pub mod rig;
 pub mod serve;
 pub mod stitch;
 
