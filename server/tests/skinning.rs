@@ -45,9 +45,12 @@ struct Reference {
     skeleton: Skeleton,
     splines: Vec<Option<SplineSkinning>>,
     diagonal: f64,
+    /// Blend shapes to add after the solve (`afterSolve`).
+    after: Option<curvenet_core::blend_shapes::BlendShapes>,
 }
 
 impl Reference {
+    /// `rel`: relative to the repository, or absolute.
     fn new(rel: &str) -> Self {
         let stage = Stage::open(repo().join(rel)).unwrap();
         let mesh = stage.deformed_meshes().unwrap().remove(0);
@@ -93,7 +96,7 @@ impl Reference {
             })
             .collect();
         let diagonal = curvenet_core::mesh::bounding_box_diagonal(&mesh.projection_points);
-        Self { stage, binding, rig, skeleton, splines, diagonal }
+        Self { stage, binding, rig, skeleton, splines, diagonal, after: None }
     }
 
     fn transforms(&self, t: f64) -> Vec<Mat4> {
@@ -119,9 +122,80 @@ impl Reference {
         let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| p.as_deref()).collect();
         let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
         let mut ws = self.binding.workspace();
-        self.binding.deform(&FrameInput { posed: &posed, rest: Some(rest) }, &mut ws, &mut out, None).unwrap();
+        let mut gradients = vec![[0.0; 9]; out.len()];
+        self.binding
+            .deform(&FrameInput { posed: &posed, rest: Some(rest) }, &mut ws, &mut out, Some(&mut gradients))
+            .unwrap();
+        if let Some(shapes) = &self.after {
+            let mesh = self.stage.deformed_meshes().unwrap().remove(0);
+            let weights = self.stage.blend_shape_weights(&mesh, Some(t)).unwrap();
+            shapes.add_deformed(&weights, &gradients, &mut out).unwrap();
+        }
         out
     }
+
+    /// The mesh's points skinned by the core (no blend shapes).
+    fn skinned(&self, t: f64) -> Vec<[f64; 3]> {
+        let mesh = self.stage.deformed_meshes().unwrap().remove(0);
+        let n = mesh.projection_points.len();
+        let rig = &self.rig;
+        let mut inf =
+            Influences::new(n, rig.element_size, &rig.joint_indices, &rig.joint_weights, rig.joints.len()).unwrap();
+        inf.renormalize(1e-4);
+        let points = self.stage.rest_points(&mesh, Some(t)).unwrap();
+        let mut out = vec![[0.0; 3]; n];
+        skinning::skin_points(rig.method, &points, &inf, &rig.geom_bind_transform, &self.transforms(t), &mut out)
+            .unwrap();
+        out
+    }
+}
+
+#[test]
+fn blend_shapes_asked_after_the_solve_are_added_in_the_deformed_frames() {
+    use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+    let dir = common::temp_dir("skinning", "after");
+    let layer = dir.join("after.usda");
+    std::fs::write(
+        &layer,
+        format!(
+            "#usda 1.0\n(\n    subLayers = [@{}@]\n    startTimeCode = 1\n    endTimeCode = 12\n)\n\
+             over \"Hand\" {{\n over \"Mesh\" {{\n uniform token curvenet:blendShapeOrder = \"afterSolve\"\n }}\n}}\n",
+            repo().join(SHOT).display()
+        ),
+    )
+    .unwrap();
+    let (after, before) = (dir.join("after_bake.usda"), dir.join("before_bake.usda"));
+    for (input, out) in [(layer.to_str().unwrap(), &after), (SHOT, &before)] {
+        let run = curvenet(&["bake", input, "--out", out.to_str().unwrap(), "--frames", "12"]);
+        assert!(run.status.success(), "{}", stderr(&run));
+    }
+    let mut reference = Reference::new(layer.to_str().unwrap());
+    let mesh = reference.stage.deformed_meshes().unwrap().remove(0);
+    let n = mesh.projection_points.len();
+    let shapes = mesh
+        .blend_shapes
+        .iter()
+        .map(|s| {
+            let ib = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
+            BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib).unwrap()
+        })
+        .collect();
+    reference.after = Some(BlendShapes::new(n, shapes));
+    let want = reference.deform(12.0, &reference.skinned(12.0));
+    let read = |p: &std::path::Path| -> Vec<[f64; 3]> {
+        read_points_overrides(p).unwrap().prims[0].samples[0].1.iter().map(|q| q.map(f64::from)).collect()
+    };
+    let (got, other) = (read(&after), read(&before));
+    let (err, order) = (max_dist(&got, &want), max_dist(&got, &other));
+    eprintln!(
+        "afterSolve: the bake equals skinning, the solve, then the blend shape in the deformed frames to {:.2e} x \
+         diagonal; it differs from UsdSkel's order by {:.2e}",
+        err / reference.diagonal,
+        order / reference.diagonal
+    );
+    assert!(err <= 1e-6 * reference.diagonal, "{err:e}");
+    assert!(order > 1e-4 * reference.diagonal, "the order should matter at frame 12 ({order:e})");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -246,5 +320,32 @@ fn curvenet_skinning_without_a_rig_or_with_bad_weights_is_refused_naming_the_pri
         "{err}"
     );
     assert!(!out.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn g1_flexible_spline_skinning_is_an_option_whose_iterations_the_bake_reports() {
+    let dir = common::temp_dir("skinning", "flexible");
+    let (fixed, flexible) = (dir.join("fixed.usda"), dir.join("flexible.usda"));
+    let run = curvenet(&["bake", SHOT, "--out", fixed.to_str().unwrap(), "--frames", "12"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(!stderr(&run).contains("G1-flexible"), "{}", stderr(&run));
+    let run = curvenet(&["bake", SHOT, "--out", flexible.to_str().unwrap(), "--frames", "12", "--g1-flexible", "6"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let err = stderr(&run);
+    eprintln!("{err}");
+    // Two spline-skinned curvenets, one frame: two poses, 1 to 6 iterations each.
+    let iterations: usize = err
+        .split("G1-flexible spline skinning: ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no iteration count in {err}"));
+    assert!((2..=12).contains(&iterations) && err.contains("over 2 curvenet poses"), "{err}");
+    let a = &read_points_overrides(&fixed).unwrap().prims[0].samples[0].1;
+    let b = &read_points_overrides(&flexible).unwrap().prims[0].samples[0].1;
+    let moved =
+        a.iter().zip(b).map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).abs()).fold(0.0f32, f32::max)).fold(0.0, f32::max);
+    assert!(moved > 0.0, "the flexible ratios should change the posed curvenets, hence the mesh");
     std::fs::remove_dir_all(&dir).unwrap();
 }

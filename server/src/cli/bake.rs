@@ -86,6 +86,12 @@ pub struct Args {
     /// No progress line and no summary.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Spline skinning with flexible G1 tangent ratios (Liu et al. 2015,
+    /// section 4): after the fixed-ratio fit, up to N alternating iterations
+    /// free the tangent length ratios at smooth junctions (0: off). The
+    /// summary reports the iterations done.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub g1_flexible: usize,
 }
 
 /// An inclusive range of integer time codes.
@@ -177,7 +183,7 @@ pub fn run(args: &Args) -> CliResult {
     let inputs = inputs
         .into_iter()
         .map(|(m, n, r)| {
-            let rig = MeshRig::new(&stage, &m, &n)?;
+            let rig = MeshRig::new(&stage, &m, &n, args.g1_flexible)?;
             let order = stage.blend_shape_order(&m)?.unwrap_or(match rig {
                 Some(_) => BlendShapeOrder::BeforeSkinning,
                 None => BlendShapeOrder::AfterSolve,
@@ -269,12 +275,15 @@ pub fn run(args: &Args) -> CliResult {
     let prims = jobs.iter().zip(baked).map(|(j, samples)| PrimPoints { prim: j.mesh.path.clone(), samples }).collect();
     write_points_overrides(&args.out, prims, range, &doc).map_err(write_error)?;
     let write_ms = ms(t_write.elapsed());
+    let (iterations, poses) = jobs.iter().filter_map(|j| j.rig.as_ref()).fold((0, 0), |(i, p), r| {
+        (i + r.flexible_iterations.load(Ordering::Relaxed), p + r.flexible_poses.load(Ordering::Relaxed))
+    });
 
     if !args.quiet {
         let vertices: usize = jobs.iter().map(|j| j.binding.n_vertices()).sum();
         eprintln!(
             "curvenet: baked {} mesh{} ({vertices} vertices) x {} frame{} ({}) to {} in {:.2} s: bind {:.0} ms, \
-             mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms",
+             mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms{}",
             jobs.len(),
             if jobs.len() == 1 { "" } else { "es" },
             frames.len(),
@@ -287,6 +296,13 @@ pub fn run(args: &Args) -> CliResult {
             if threads == 1 { "" } else { "s" },
             ms(read_time),
             write_ms,
+            match poses {
+                0 => String::new(),
+                p => format!(
+                    ", G1-flexible spline skinning: {iterations} iterations over {p} curvenet poses ({:.1} each)",
+                    iterations as f64 / p as f64
+                ),
+            },
         );
     }
     Ok(())

@@ -459,7 +459,7 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
 fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Option<RigReport>> {
     use curvenet_core::skinning::JunctionKind;
     let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
-    let Some(rig) = super::rig::MeshRig::new(stage, m, &nets)? else { return Ok(None) };
+    let Some(rig) = super::rig::MeshRig::new(stage, m, &nets, 0)? else { return Ok(None) };
     let transforms = match time {
         Some(_) => Some(rig.read_transforms(stage, time)?),
         None => None,

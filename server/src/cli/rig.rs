@@ -11,6 +11,8 @@ use curvenet_core::skinning::{
     self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, Skin, SplineSkinning,
     SplineSkinningOptions, SurfaceWeights,
 };
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use curvenet_core::{ClosestPointBvh, PolyMesh};
 use curvenet_schema::usd::{CurvenetSkinning, SkinRig, Stage};
 use curvenet_schema::{CurvenetData, MeshData};
@@ -42,6 +44,11 @@ pub struct MeshRig {
     pub nets: Vec<Option<NetRig>>,
     /// Wall time of the spline skinning precomputation (all curvenets).
     pub spline_ms: f64,
+    /// Up to this many G¹-flexible iterations per spline-skinned pose (0: the fixed-ratio fit).
+    pub flexible: usize,
+    /// Iterations done and poses computed with them, over all frames.
+    pub flexible_iterations: AtomicU64,
+    pub flexible_poses: AtomicU64,
 }
 
 fn core(context: String) -> impl FnOnce(curvenet_core::Error) -> CliError {
@@ -52,7 +59,7 @@ impl MeshRig {
     /// The rig of `mesh` and its curvenets `nets`, or `None` when the mesh
     /// has no UsdSkel joint influences. A curvenet that asks for spline
     /// skinning on a mesh without a rig is bad input.
-    pub fn new(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData]) -> CliResult<Option<Self>> {
+    pub fn new(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData], flexible: usize) -> CliResult<Option<Self>> {
         let modes = nets.iter().map(|n| stage.curvenet_skinning(n)).collect::<Result<Vec<_>, _>>()?;
         let Some(rig) = stage.skin_rig(mesh)? else {
             if let Some((net, _)) = nets.iter().zip(&modes).find(|(_, m)| **m != CurvenetSkinning::None) {
@@ -113,7 +120,17 @@ impl MeshRig {
         }
         let spline_ms = t0.elapsed().as_secs_f64() * 1e3;
         let skin = Skin::new(influences, rig.geom_bind_transform, rig.method).map_err(core(mesh.path.clone()))?;
-        Ok(Some(Self { rig, skeleton, skin, unnormalized, nets: net_rigs, spline_ms }))
+        Ok(Some(Self {
+            rig,
+            skeleton,
+            skin,
+            unnormalized,
+            nets: net_rigs,
+            spline_ms,
+            flexible,
+            flexible_iterations: AtomicU64::new(0),
+            flexible_poses: AtomicU64::new(0),
+        }))
     }
 
     /// The skinning transforms at `time` (one per Skeleton joint), with the
@@ -140,11 +157,18 @@ impl MeshRig {
         Ok(out)
     }
 
-    /// The spline-skinned pool of curvenet `k`, if it is spline-skinned.
+    /// The spline-skinned pool of curvenet `k`, if it is spline-skinned
+    /// (with up to `flexible` G¹-flexible iterations).
     pub fn posed(&self, k: usize, transforms: &[Mat4]) -> Result<Option<Vec<[f64; 3]>>, curvenet_core::Error> {
         let Some(net) = &self.nets[k] else { return Ok(None) };
         let mut out = vec![[0.0; 3]; net.spline.n_points()];
-        net.spline.pose(transforms, &mut out)?;
+        if self.flexible == 0 {
+            net.spline.pose(transforms, &mut out)?;
+        } else {
+            let report = net.spline.pose_flexible(transforms, self.flexible, &mut out)?;
+            self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
+            self.flexible_poses.fetch_add(1, Ordering::Relaxed);
+        }
         Ok(Some(out))
     }
 }
