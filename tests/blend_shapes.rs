@@ -79,7 +79,14 @@ fn sculpts_move_with_the_surface_and_weight_zero_changes_nothing() {
     let (c, sn) = (70f64.to_radians().cos(), 70f64.to_radians().sin());
     let rot = |p: &[f64; 3]| [c * p[0] - sn * p[1] + 0.1, sn * p[0] + c * p[1], p[2] - 0.2];
     let pool: Vec<[f64; 3]> = b.nets[0].pool.iter().map(rot).collect();
-    b.binding.deform(&FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, Some(&mut grads)).unwrap();
+    b.binding
+        .deform(
+            &FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+            &mut ws,
+            &mut out,
+            Some(&mut grads),
+        )
+        .unwrap();
     let base = out.clone();
     let rigid: Vec<[f64; 3]> = b.mesh.projection_points.iter().map(rot).collect();
     let base_err = max_distance(&base, &rigid);

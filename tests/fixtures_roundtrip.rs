@@ -157,3 +157,73 @@ fn every_fixture_reads_back_as_the_manifest_says() {
     assert!(failures.is_empty(), "{} mismatches:\n{}", failures.len(), failures.join("\n"));
     assert!(checked_samples > 20, "only {checked_samples} time samples checked");
 }
+
+/// The `CurvenetAdjustment` prims of every fixture read back with the Rust
+/// reader as the manifest says (its tangents computed by the generator on
+/// its own), and stages without an `adjustments` entry have none.
+#[test]
+fn every_adjustment_reads_back_as_the_manifest_says() {
+    use curvenet_core::Rotate;
+    let manifest = manifest();
+    let mut checked = 0usize;
+    for (rel, want) in manifest["stages"].as_object().expect("stages object") {
+        let stage = Stage::open(fixtures_dir().join(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"));
+        let empty = serde_json::Map::new();
+        let want = want.get("adjustments").map_or(&empty, |a| a.as_object().expect("adjustments object"));
+        let mut seen = 0;
+        for net in stage.curvenets().unwrap() {
+            let list = stage.curvenet_adjustments(&net).unwrap_or_else(|e| panic!("{rel}: {e}"));
+            for a in &list {
+                seen += 1;
+                let w = want.get(&a.path).unwrap_or_else(|| panic!("{rel}: unexpected adjustment {}", a.path));
+                let tag = format!("{rel} {}", a.path);
+                assert_eq!(a.curvenet, w["curvenet"].as_str().unwrap(), "{tag}");
+                assert_eq!(a.knot as u64, w["knot"].as_u64().unwrap(), "{tag}");
+                assert_eq!(a.attach_tangents, w["attach_tangents"].as_bool().unwrap(), "{tag}");
+                let tangents: Vec<u32> =
+                    w["tangents"].as_array().unwrap().iter().map(|t| t.as_u64().unwrap() as u32).collect();
+                assert_eq!(a.tangents, tangents, "{tag} tangents");
+                assert_eq!(a.rotate.as_deref(), w["rotate"].as_str(), "{tag} rotate");
+                for (attribute, samples) in w["values"].as_object().unwrap() {
+                    for s in samples.as_array().unwrap() {
+                        let t = s[0].as_f64();
+                        let got = stage.adjustments_at(std::slice::from_ref(&list), t).unwrap();
+                        let got = got.iter().find(|g| g.knot == a.knot).unwrap();
+                        let want_v = numbers_of(&s[1]);
+                        let got_v: Vec<f64> = match attribute.as_str() {
+                            "xformOp:translate" => got.translate.to_vec(),
+                            "xformOp:scale" => got.scale.to_vec(),
+                            "xformOp:rotateXYZ" => match got.rotate {
+                                Rotate::EulerXyz(e) => e.to_vec(),
+                                other => panic!("{tag}: {other:?}"),
+                            },
+                            "xformOp:orient" => match got.rotate {
+                                Rotate::Quaternion(q) => q.to_vec(),
+                                other => panic!("{tag}: {other:?}"),
+                            },
+                            "curvenet:tangentTranslates" => got.tangent_translates.as_flattened().to_vec(),
+                            other => panic!("{tag}: unknown attribute {other}"),
+                        };
+                        assert_eq!(got_v.len(), want_v.len(), "{tag} {attribute} at {t:?}");
+                        for (g, x) in got_v.iter().zip(&want_v) {
+                            assert!(
+                                close(*g, *x),
+                                "{tag} {attribute} at {t:?}: Rust reads {got_v:?}, manifest {want_v:?}"
+                            );
+                        }
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(seen, want.len(), "{rel}: adjustment count");
+    }
+    assert!(checked >= 8, "only {checked} adjustment values checked");
+}
+
+fn numbers_of(v: &Value) -> Vec<f64> {
+    match v {
+        Value::Array(items) => items.iter().flat_map(numbers_of).collect(),
+        other => vec![f(other)],
+    }
+}

@@ -8,7 +8,7 @@ use curvenet_e2e::{Bound, bind_fixture, max_distance};
 fn solve(b: &Bound, posed: &[Option<&[[f64; 3]]>], rest: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
     let mut ws = b.binding.workspace();
     let mut out = vec![[0.0; 3]; b.binding.n_vertices()];
-    b.binding.deform(&FrameInput { posed, rest }, &mut ws, &mut out, None).unwrap();
+    b.binding.deform(&FrameInput { posed, rest, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     out
 }
 

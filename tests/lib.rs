@@ -87,7 +87,14 @@ impl Bound {
         let refs: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
         let mut ws = self.binding.workspace();
         let mut out = vec![[0.0; 3]; self.binding.n_vertices()];
-        self.binding.deform(&curvenet_core::FrameInput { posed: &refs, rest: None }, &mut ws, &mut out, None).unwrap();
+        self.binding
+            .deform(
+                &curvenet_core::FrameInput { posed: &refs, rest: None, ..Default::default() },
+                &mut ws,
+                &mut out,
+                None,
+            )
+            .unwrap();
         out
     }
 
@@ -102,4 +109,69 @@ pub fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
         .zip(b)
         .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
         .fold(0.0, f64::max)
+}
+
+/// Pairs of splines of a curvenet whose projections onto the surface cross,
+/// with a point near the crossing: every spline is sampled every tenth of a
+/// mean edge and projected (closest points); consecutive samples in one
+/// triangle make a segment in that triangle's barycentric plane (an affine
+/// image of the triangle, so crossings are preserved); segments of two
+/// splines in one triangle that properly intersect are a crossing, unless
+/// all their ends are within half a mean edge of a knot both splines share.
+/// (The same check as core/tests/draft.rs, written independently of the
+/// drafter and of the binding.)
+pub fn projected_crossings(
+    pool: &[[f64; 3]],
+    splines: &[[u32; 4]],
+    bvh: &curvenet_core::ClosestPointBvh,
+    edge: f64,
+) -> Vec<(usize, usize, [f64; 3])> {
+    type Seg = (usize, [f64; 2], [f64; 2], [f64; 3], [f64; 3]);
+    let dist =
+        |a: [f64; 3], b: [f64; 3]| ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+    let bezier = |c: [[f64; 3]; 4], u: f64| -> [f64; 3] {
+        let v = 1.0 - u;
+        let w = [v * v * v, 3.0 * v * v * u, 3.0 * v * u * u, u * u * u];
+        [0, 1, 2].map(|k| (0..4).map(|i| w[i] * c[i][k]).sum())
+    };
+    let mut by_triangle: std::collections::BTreeMap<u32, Vec<Seg>> = std::collections::BTreeMap::new();
+    for (s, sp) in splines.iter().enumerate() {
+        let c = sp.map(|i| pool[i as usize]);
+        let polygon = dist(c[0], c[1]) + dist(c[1], c[2]) + dist(c[2], c[3]);
+        let n = ((polygon / (0.1 * edge)).ceil() as usize).clamp(8, 1_000_000);
+        let hits: Vec<_> = (0..=n).map(|i| bvh.closest_point(bezier(c, i as f64 / n as f64)).unwrap()).collect();
+        for w in hits.windows(2) {
+            if w[0].triangle == w[1].triangle {
+                let uv = |h: &curvenet_core::Hit| [h.barycentric[1], h.barycentric[2]];
+                by_triangle.entry(w[0].triangle).or_default().push((s, uv(&w[0]), uv(&w[1]), w[0].point, w[1].point));
+            }
+        }
+    }
+    let orient = |a: [f64; 2], b: [f64; 2], c: [f64; 2]| (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    let mut found = Vec::new();
+    for segs in by_triangle.values() {
+        for (i, a) in segs.iter().enumerate() {
+            for b in &segs[i + 1..] {
+                if a.0 == b.0 {
+                    continue;
+                }
+                let crosses = orient(a.1, a.2, b.1) * orient(a.1, a.2, b.2) < 0.0
+                    && orient(b.1, b.2, a.1) * orient(b.1, b.2, a.2) < 0.0;
+                if !crosses {
+                    continue;
+                }
+                let (sa, sb) = (splines[a.0], splines[b.0]);
+                let at_shared_knot = [sa[0], sa[3]].into_iter().filter(|k| *k == sb[0] || *k == sb[3]).any(|k| {
+                    let foot = bvh.closest_point(pool[k as usize]).unwrap().point;
+                    [a.3, a.4, b.3, b.4].iter().all(|p| dist(*p, foot) < 0.5 * edge)
+                });
+                if !at_shared_knot {
+                    found.push((a.0.min(b.0), a.0.max(b.0), a.3));
+                }
+            }
+        }
+    }
+    found.sort_by_key(|x| (x.0, x.1));
+    found.dedup_by(|x, y| (x.0, x.1) == (y.0, y.1));
+    found
 }

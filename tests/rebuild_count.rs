@@ -18,7 +18,9 @@ fn frames_with_new_rest_poses_reuse_the_binding() {
         let s = 1.0 + 0.1 * k as f64;
         let rest: Vec<[f64; 3]> =
             b.mesh.projection_points.iter().map(|p| [p[0] * s, p[1], p[2] + 0.01 * k as f64]).collect();
-        b.binding.deform(&FrameInput { posed: &[None], rest: Some(&rest) }, &mut ws, &mut out, None).unwrap();
+        b.binding
+            .deform(&FrameInput { posed: &[None], rest: Some(&rest), ..Default::default() }, &mut ws, &mut out, None)
+            .unwrap();
         assert!(out.iter().zip(&rest).all(|(o, r)| (0..3).all(|i| (o[i] - r[i]).abs() < 1e-9)));
     }
     assert_eq!((cut_mesh_builds(), numeric_factorizations()), (cuts, factors), "a frame rebuilt the binding");

@@ -238,3 +238,24 @@ fn unresolvable_stages_are_refused_at_open() {
     let garbage = write("garbage.usda", "#usda 1.0\ndef Mesh \"M\" { int[] faceVertexCounts = [3, \n");
     assert!(matches!(Stage::open(&garbage), Err(UsdError::Open { .. })));
 }
+
+#[test]
+fn indexed_projection_points_are_flattened() {
+    let path = variant(
+        "indexed_projection.usda",
+        "rel curvenet:curvenets = </W/C>",
+        "rel curvenet:curvenets = </W/C>\n        point3f[] primvars:curvenet:projectionPoints = [(5,0,0), (0,5,0), (0,0,5)] ( interpolation = \"vertex\" )\n        int[] primvars:curvenet:projectionPoints:indices = [2, 0, 0, 1]",
+    );
+    let stage = Stage::open(&path).unwrap();
+    let m = stage.mesh("/W/M").unwrap();
+    assert_eq!(m.projection_points, vec![[0.0, 0.0, 5.0], [5.0, 0.0, 0.0], [5.0, 0.0, 0.0], [0.0, 5.0, 0.0]]);
+    // An index past the values is named.
+    let bad = variant(
+        "indexed_projection_bad.usda",
+        "rel curvenet:curvenets = </W/C>",
+        "rel curvenet:curvenets = </W/C>\n        point3f[] primvars:curvenet:projectionPoints = [(5,0,0), (0,5,0)] ( interpolation = \"vertex\" )\n        int[] primvars:curvenet:projectionPoints:indices = [0, 1, 2, 1]",
+    );
+    let (prim, attr, why) = contract(Stage::open(&bad).unwrap().mesh("/W/M").unwrap_err());
+    assert_eq!((prim.as_str(), attr.as_str()), ("/W/M", "primvars:curvenet:projectionPoints:indices"));
+    assert!(why.contains("entry 2 is 2"), "{why}");
+}

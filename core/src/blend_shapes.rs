@@ -180,6 +180,24 @@ impl BlendShapes {
     }
 }
 
+impl BlendShapes {
+    /// Heap bytes held by the shapes, their offsets, indices and inbetweens (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        bytes(&self.shapes)
+            + self
+                .shapes
+                .iter()
+                .map(|s| {
+                    bytes(&s.offsets)
+                        + s.point_indices.as_ref().map_or(0, bytes)
+                        + bytes(&s.weights)
+                        + nested_bytes(&s.sub_offsets)
+                })
+                .sum::<usize>()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

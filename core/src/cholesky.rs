@@ -57,7 +57,8 @@ pub struct Cholesky {
 
 impl Cholesky {
     /// Orders (AMD), analyses and factors `a`. Fails with
-    /// [`Error::NotPositiveDefinite`] when `a` is not numerically SPD.
+    /// [`Error::NotPositiveDefinite`] naming the row (in `a`'s order) of the
+    /// first non-positive pivot when `a` is not numerically SPD.
     pub fn new(a: &SymmetricTriplets) -> Result<Self> {
         Self::with_threshold(a, SupernodalThreshold::AUTO)
     }
@@ -96,7 +97,15 @@ impl Cholesky {
                 MemStack::new(&mut mem),
                 Default::default(),
             )
-            .map_err(|_| Error::NotPositiveDefinite)?;
+            .map_err(|e| {
+                // faer names the failing pivot 1-based in the permuted order; map it back.
+                let faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index } = e;
+                let pivot = index.checked_sub(1).and_then(|p| match symbolic.perm() {
+                    Some(perm) => perm.arrays().0.get(p).map(|&i| i as usize),
+                    None => Some(p),
+                });
+                Error::NotPositiveDefinite { pivot }
+            })?;
         let perm: Vec<u32> = match symbolic.perm() {
             Some(p) => p.arrays().0.to_vec(),
             None => (0..n as u32).collect(),
@@ -222,6 +231,29 @@ fn to_faer(a: &SymmetricTriplets) -> Result<SparseColMat<u32, f64>> {
         .map_err(|e| Error::Internal { what: format!("assembling a sparse matrix failed: {e:?}") })
 }
 
+impl Cholesky {
+    /// Heap bytes held: the permutation, the factor's CSC arrays and faer's
+    /// symbolic analysis (its permutation and index arrays, by length),
+    /// shared with refactored copies (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        let idx = std::mem::size_of::<u32>();
+        let perm = self.symbolic.perm().map_or(0, |p| 2 * p.arrays().0.len() * idx);
+        let raw = match self.symbolic.raw() {
+            SymbolicCholeskyRaw::Simplicial(s) => (s.col_ptr().len() + s.row_idx().len()) * idx,
+            SymbolicCholeskyRaw::Supernodal(s) => {
+                (s.supernode_begin().len()
+                    + s.supernode_end().len()
+                    + s.col_ptr_for_row_idx().len()
+                    + s.col_ptr_for_val().len()
+                    + s.row_idx().len())
+                    * idx
+            }
+        };
+        bytes(&self.perm) + bytes(&self.col_ptr) + bytes(&self.row_idx) + bytes(&self.values) + perm + raw
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -303,6 +335,12 @@ mod tests {
     #[test]
     fn indefinite_matrices_are_refused() {
         let a = SymmetricTriplets { n: 2, entries: vec![(0, 0, 1.0), (1, 0, 2.0), (1, 1, 1.0)] };
-        assert_eq!(Cholesky::new(&a).unwrap_err(), Error::NotPositiveDefinite);
+        assert!(matches!(Cholesky::new(&a).unwrap_err(), Error::NotPositiveDefinite { pivot: Some(_) }));
+        // A diagonal matrix, positive but for row 3 of 5: the error names row 3, whatever the ordering.
+        let d = SymmetricTriplets {
+            n: 5,
+            entries: (0..5).map(|i| (i, i, if i == 3 { -1.0 } else { 1.0 + i as f64 })).collect(),
+        };
+        assert_eq!(Cholesky::new(&d).unwrap_err(), Error::NotPositiveDefinite { pivot: Some(3) });
     }
 }

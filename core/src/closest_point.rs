@@ -375,6 +375,21 @@ fn segment(p: DVec3, a: DVec3, b: DVec3) -> (f64, DVec3) {
     (s, a + s * d)
 }
 
+impl ClosestPointBvh {
+    /// Heap bytes held: points, triangles, leaves and nodes (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.points)
+            + bytes(&self.triangles)
+            + bytes(&self.triangle_face)
+            + bytes(&self.leaf_triangle)
+            + bytes(&self.leaf_corners)
+            + bytes(&self.face_normals)
+            + bytes(&self.face_vector_areas)
+            + bytes(&self.nodes)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

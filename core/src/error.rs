@@ -22,6 +22,13 @@ pub enum Error {
     /// A coordinate is NaN or infinite.
     #[error("{what} {index} has a non-finite coordinate {value:?}")]
     NonFinite { what: &'static str, index: usize, value: [f64; 3] },
+    /// A scalar input (a weight) is NaN or infinite.
+    #[error("{what} {index} is {value}, not a finite number")]
+    NonFiniteScalar { what: &'static str, index: usize, value: f64 },
+    /// An error about one curvenet's own shape (its splines, sampling or
+    /// intersections), naming the curvenet by its index in the binding.
+    #[error("curvenet {curvenet}: {source}")]
+    Curvenet { curvenet: u32, source: Box<Error> },
     /// Two arrays that must have the same length do not.
     #[error("{what}: expected {expected} entries, got {got}")]
     CountMismatch { what: &'static str, expected: usize, got: usize },
@@ -62,11 +69,15 @@ pub enum Error {
     /// (`path_length` infinite).
     #[error("{segment} at {position:?} (spline parameter {t:.3}) {}", detour_text(*path_length, *segment_length))]
     SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
-    /// Two curvenet segments meet at a point that is not a shared knot.
-    #[error("{segment} and {other} touch without a shared knot (self-overlapping or overlapping curvenets)")]
+    /// Segments of two different curves run over one stretch of the surface
+    /// (overlapping curves or curvenets).
+    #[error(
+        "{segment} and {other} run over one stretch of the surface without a shared knot (overlapping curves or curvenets)"
+    )]
     CurvesOverlap { segment: SegmentRef, other: SegmentRef },
-    /// Two curvenet segments cross inside a face without a shared knot.
-    #[error("{segment} and {other} cross inside face {face} without a shared knot")]
+    /// In strict mode: two segments' surface paths meet at a point that is
+    /// not a shared knot (bound with a `CurvesTouch` warning otherwise).
+    #[error("{segment} and {other} meet at a point of face {face} that is not a shared knot")]
     CurvesCross { segment: SegmentRef, other: SegmentRef, face: u32 },
     /// A segment's chord crosses the boundary of the face it was traced in.
     #[error("{segment} crosses the boundary of face {face} (the face is too curved for its chord)")]
@@ -75,8 +86,8 @@ pub enum Error {
     #[error("mesh component {component} ({vertices} vertices) is touched by no curvenet")]
     UntouchedComponent { component: usize, vertices: usize },
     /// A matrix that must be symmetric positive definite is not (numerically).
-    #[error("the system matrix is not positive definite")]
-    NotPositiveDefinite,
+    #[error("the system matrix is not positive definite{}", pivot.map(|p| format!(" (first failing pivot: row {p})")).unwrap_or_default())]
+    NotPositiveDefinite { pivot: Option<usize> },
     /// A feature not available yet.
     #[error("not supported yet: {what}")]
     Unsupported { what: &'static str },
@@ -116,12 +127,40 @@ pub enum Error {
     /// The sampling would give a spline more segments than allowed.
     #[error("spline {spline} would get {segments} segments, more than the maximum {max}")]
     TooManySegments { spline: usize, segments: f64, max: u32 },
+    /// The tangents at an intersection are all parallel in some pose, so
+    /// the rotation fitting them (its knot orientation) is undetermined.
+    #[error(
+        "the tangents at the intersection at control point {point} are all parallel in this pose; \
+         its knot orientation is undetermined"
+    )]
+    UndeterminedKnotOrientation { point: u32 },
+    /// An adjustment names a control point that is not a knot (spline endpoint).
+    #[error(
+        "adjustment {adjustment}: control point {point} of curvenet {curvenet} is not a knot (a spline \
+         endpoint); only knots can be adjusted"
+    )]
+    NotAKnot { adjustment: usize, curvenet: usize, point: u32 },
+    /// An adjustment carries a value it cannot apply.
+    #[error("adjustment {adjustment} (knot {point} of curvenet {curvenet}): {problem}")]
+    InvalidAdjustment { adjustment: usize, curvenet: usize, point: u32, problem: &'static str },
+    /// An adjustment's tangent translates do not match its knot's tangents.
+    #[error(
+        "adjustment {adjustment} (knot {point} of curvenet {curvenet}) has {got} tangent translates; \
+         the knot has {expected} tangents (give one per tangent, or none)"
+    )]
+    TangentTranslateCount { adjustment: usize, curvenet: usize, point: u32, expected: usize, got: usize },
+    /// Two adjustments of the same knot.
+    #[error("adjustments {} and {} both adjust knot {point} of curvenet {curvenet}", adjustments[0], adjustments[1])]
+    DuplicateAdjustment { curvenet: usize, point: u32, adjustments: [usize; 2] },
     /// A numeric parameter or option is out of its valid range.
     #[error("{what} must be finite and positive, got {value}")]
     InvalidParameter { what: &'static str, value: f64 },
     /// Skinning input (influences, transforms, spline weights) refused; names the element.
     #[error(transparent)]
     Skinning(crate::skinning::SkinningError),
+    /// The caller cancelled the computation ([`crate::Cancel`]) during `stage`.
+    #[error("cancelled during {stage}")]
+    Cancelled { stage: &'static str },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

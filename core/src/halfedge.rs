@@ -212,6 +212,19 @@ impl Halfedges {
     }
 }
 
+impl Halfedges {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.tail)
+            + bytes(&self.next)
+            + bytes(&self.twin)
+            + bytes(&self.face)
+            + bytes(&self.face_start)
+            + bytes(&self.face_component)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -11,22 +11,30 @@
 //! - A curvenet is a pool of control points plus cubic Bézier splines, each a
 //!   `[u32; 4]` of indices into the pool.
 
+pub mod adjust;
 pub mod binding;
 pub mod blend_shapes;
+pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
 pub mod curvenet;
+pub mod deformer;
+pub mod draft;
 pub mod error;
 pub mod halfedge;
+pub mod heap;
 pub mod mesh;
 pub mod polygon_laplacian;
 pub mod skinning;
 pub mod solve;
 pub mod sparse;
 
+pub use adjust::{Adjustment, Rotate};
 pub use binding::{BindOptions, BindWarning, Binding};
+pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
+pub use deformer::{BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;
 pub use solve::{FrameInput, Workspace};

@@ -153,6 +153,13 @@ fn dist(p: [f64; 3], q: [f64; 3]) -> f64 {
     ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
 }
 
+impl PolyMesh {
+    /// Heap bytes held (offsets and indices; see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        crate::heap::bytes(&self.offsets) + crate::heap::bytes(&self.indices)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,7 @@
 
 use glam::{DMat3, DVec3};
 
+use crate::adjust::{Adjustment, UNCLAIMED};
 use crate::binding::{Binding, Corner, triangle_frame};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
@@ -25,6 +26,12 @@ pub struct FrameInput<'a> {
     /// The mesh's rest pose this frame (skinning or cloth output, one point
     /// per vertex); `None` for the projection pose.
     pub rest: Option<&'a [[f64; 3]]>,
+    /// Curvenet Adjustments ([`crate::adjust`]) applied on top of whatever
+    /// posed each curvenet above (its posed pool, else knot tracking to
+    /// `rest`, else the neutral pool), in their knots' orientation frames.
+    /// Empty (the default): none; identity adjustments change nothing, bit
+    /// for bit.
+    pub adjustments: &'a [Adjustment],
 }
 
 /// Reusable buffers of a frame solve, sized for one binding.
@@ -48,6 +55,12 @@ pub struct Workspace {
     rest_corner_r: Vec<DVec3>,
     rest_sample_offset: Vec<DVec3>,
     rest_crossing_offset: Vec<DVec3>,
+    // Adjustment state (used when a frame brings adjustments): per curvenet
+    // the adjusted pool, the knot orientations, and which adjustment claims
+    // each knot (UNCLAIMED between frames).
+    adjusted: Vec<Vec<[f64; 3]>>,
+    orientations: Vec<Vec<Mat3>>,
+    claimed: Vec<Vec<u32>>,
 }
 
 impl Binding {
@@ -72,6 +85,9 @@ impl Binding {
             rest_corner_r: vec![DVec3::ZERO; self.cut.n_halfedges()],
             rest_sample_offset: vec![DVec3::ZERO; self.sample_offset.len()],
             rest_crossing_offset: vec![DVec3::ZERO; self.crossings.len()],
+            adjusted: self.layouts.iter().map(|l| vec![[0.0; 3]; l.sampling().n_points()]).collect(),
+            orientations: self.layouts.iter().map(|l| vec![[[0.0; 3]; 3]; l.sampling().n_knots()]).collect(),
+            claimed: self.layouts.iter().map(|l| vec![UNCLAIMED; l.sampling().n_knots()]).collect(),
         }
     }
 
@@ -123,12 +139,39 @@ impl Binding {
             self.warp_to_rest(rest, ws)?;
         }
         let rest_mode = input.rest.is_some();
+        if !input.adjustments.is_empty() {
+            self.check_adjustments_with(input.adjustments, &mut ws.claimed)?;
+        }
         // Curvenet deformation (Algorithm 1, line 4) and f_c (line 5).
         for (k, layout) in self.layouts.iter().enumerate() {
-            match (posed[k], rest_mode) {
-                (Some(pool), _) => layout.sampling().samples_into(pool, &mut ws.samples[k])?,
-                (None, false) => ws.samples[k].copy_from_slice(layout.neutral_samples()),
-                (None, true) => ws.samples[k].copy_from_slice(&ws.rest_samples[k]),
+            if input.adjustments.iter().any(|a| a.curvenet == k) {
+                // The Curvenet Adjuster: orientations of the pool posed so
+                // far, then the adjusted pool is the one sampled.
+                let Workspace { samples, tracked, rest_samples, adjusted, orientations, .. } = &mut *ws;
+                let (pool, pool_samples): (&[[f64; 3]], &[[f64; 3]]) = match (posed[k], rest_mode) {
+                    (Some(pool), _) => {
+                        layout.sampling().samples_into(pool, &mut samples[k])?;
+                        (pool, samples[k].as_slice())
+                    }
+                    (None, false) => (layout.neutral_pool(), layout.neutral_samples()),
+                    (None, true) => (tracked[k].as_slice(), rest_samples[k].as_slice()),
+                };
+                self.adjust_pool_into(
+                    k,
+                    pool,
+                    pool_samples,
+                    input.rest,
+                    input.adjustments,
+                    &mut orientations[k],
+                    &mut adjusted[k],
+                )?;
+                layout.sampling().samples_into(&adjusted[k], &mut samples[k])?;
+            } else {
+                match (posed[k], rest_mode) {
+                    (Some(pool), _) => layout.sampling().samples_into(pool, &mut ws.samples[k])?,
+                    (None, false) => ws.samples[k].copy_from_slice(layout.neutral_samples()),
+                    (None, true) => ws.samples[k].copy_from_slice(&ws.rest_samples[k]),
+                }
             }
             scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k])?;
             let rest_frames = if rest_mode { &ws.rest_frames[k][..] } else { layout.neutral_frames() };
@@ -336,4 +379,28 @@ fn flat(m: &Mat3) -> [f64; 9] {
 
 fn unflat(f: &[f64; 9]) -> DMat3 {
     DMat3::from_cols_array(f).transpose()
+}
+
+impl Workspace {
+    /// Heap bytes held by the workspace's buffers (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        nested_bytes(&self.samples)
+            + nested_bytes(&self.frames)
+            + nested_bytes(&self.gradients)
+            + bytes(&self.slot_f)
+            + bytes(&self.fc)
+            + bytes(&self.xc)
+            + bytes(&self.rhs9)
+            + bytes(&self.work9)
+            + bytes(&self.rhs3)
+            + bytes(&self.work3)
+            + nested_bytes(&self.tracked)
+            + nested_bytes(&self.rest_samples)
+            + nested_bytes(&self.rest_frames)
+            + bytes(&self.rest_cut)
+            + bytes(&self.rest_corner_r)
+            + bytes(&self.rest_sample_offset)
+            + bytes(&self.rest_crossing_offset)
+    }
 }

@@ -67,6 +67,14 @@ impl Csr {
     }
 }
 
+impl Csr {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.row_ptr) + bytes(&self.col) + bytes(&self.val)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -33,7 +33,8 @@ fn bind(mesh: &PolyMesh, pts: &[[f64; 3]], net: &NetBuilder, strict: bool) -> Re
 fn neutral(b: &Binding, net: &NetBuilder) -> Vec<[f64; 3]> {
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     out
 }
 
@@ -104,7 +105,8 @@ fn a_segment_across_two_components_is_left_out_with_a_warning() {
     let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     assert!(max_error(&out, &shifted) <= 1e-9 * diag);
     assert!(matches!(bind(&mesh, &pts, &net, true), Err(Error::SegmentDetour { .. })));
@@ -262,9 +264,85 @@ fn a_cage_with_folded_faces_binds_with_them_split() {
     let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
     let e = max_error(&out, &moved);
     println!("fish cage: a rotation of the curvenet moves the cage {:.1e} of the diagonal off the rotation", e / diag);
     assert!(e <= 1e-6 * diag);
+}
+
+/// Two lines 0.02 apart in height cross when projected onto a plate: their
+/// paths meet at a point that is no shared knot. They bind as if they met
+/// there, with a warning naming both; strict mode refuses.
+#[test]
+fn curves_whose_projections_cross_bind_with_a_warning() {
+    let (mesh, pts) = heightfield(20, |_, _| 0.0);
+    let mut net = NetBuilder::default();
+    net.segment([0.1, 0.2, 0.01], [0.9, 0.8, 0.01], [0.0; 3]);
+    net.segment([0.1, 0.8, 0.03], [0.9, 0.2, 0.03], [0.0; 3]);
+    let b = bind(&mesh, &pts, &net, false).unwrap();
+    let touches: Vec<&BindWarning> =
+        b.warnings().iter().filter(|w| matches!(w, BindWarning::CurvesTouch { .. })).collect();
+    assert_eq!(touches.len(), 1, "{:?}", b.warnings());
+    let BindWarning::CurvesTouch { count, examples } = touches[0] else { unreachable!() };
+    println!("warning: {}", touches[0]);
+    assert_eq!(*count, 1);
+    let (s, o, at) = examples[0];
+    assert_eq!([s.spline.min(o.spline), s.spline.max(o.spline)], [0, 1]);
+    assert!((at[0] - 0.5).abs() < 1e-6 && (at[1] - 0.5).abs() < 1e-6, "they cross at the middle: {at:?}");
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    assert!(max_error(&neutral(&b, &net), &pts) <= 1e-9 * diag);
+    // A rotation about the plate's normal (straight curves with no
+    // intersection carry only their tangent's rotation, as in the paper).
+    let rot = rotation([0.0, 0.0, 1.0], 0.9);
+    let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
+    let mut ws = b.workspace();
+    let mut out = vec![[0.0; 3]; b.n_vertices()];
+    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
+    let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
+    let e = max_error(&out, &moved);
+    assert!(e <= 1e-9 * diag, "a rotation of both lines rotates the plate: {e:e}");
+    assert!(matches!(bind(&mesh, &pts, &net, true), Err(Error::CurvesCross { .. })));
+    // Two curves drawn over one stretch (as on either side of a thin part)
+    // bind along it with a warning; strict mode refuses, naming both.
+    let mut twice = NetBuilder::default();
+    twice.segment([0.1, 0.5, 0.01], [0.7, 0.5, 0.01], [0.0; 3]);
+    twice.segment([0.3, 0.5, 0.02], [0.9, 0.5, 0.02], [0.0; 3]);
+    let b = bind(&mesh, &pts, &twice, false).unwrap();
+    assert!(b.warnings().iter().any(|w| matches!(w, BindWarning::CurvesTouch { .. })), "{:?}", b.warnings());
+    assert!(b.cut_mesh().touches().iter().any(|t| t.stretch));
+    assert!(max_error(&neutral(&b, &twice), &pts) <= 1e-9 * diag);
+    let e = bind(&mesh, &pts, &twice, true).unwrap_err();
+    assert!(matches!(e, Error::CurvesOverlap { .. }), "{e}");
+    println!("overlap (strict): {e}");
+}
+
+/// A curve that doubles back in height as it goes (its projection runs
+/// forwards, back over itself, and forwards again) binds: a curve may fold
+/// over itself in projection, as curves drawn beyond a concavity's centre
+/// of curvature do.
+#[test]
+fn a_curve_folding_back_over_itself_in_projection_binds() {
+    let (mesh, pts) = heightfield(20, |_, _| 0.0);
+    let mut net = NetBuilder::default();
+    // Forwards to b, back to c above the first stretch, forwards again across it.
+    let (a, b, c, d) = ([0.1, 0.47, 0.01], [0.6, 0.53, 0.01], [0.4, 0.56, 0.05], [0.9, 0.45, 0.05]);
+    let lerp = |p: [f64; 3], q: [f64; 3], t: f64| std::array::from_fn(|k| p[k] + t * (q[k] - p[k]));
+    net.spline(a, lerp(a, b, 1.0 / 3.0), lerp(a, b, 2.0 / 3.0), b);
+    net.spline(b, lerp(b, c, 1.0 / 3.0), lerp(b, c, 2.0 / 3.0), c);
+    net.spline(c, lerp(c, d, 1.0 / 3.0), lerp(c, d, 2.0 / 3.0), d);
+    let bound = bind(&mesh, &pts, &net, false).unwrap_or_else(|e| panic!("a folded curve: {e}"));
+    assert!(bound.warnings().iter().any(|w| matches!(w, BindWarning::CurvesTouch { .. })), "{:?}", bound.warnings());
+    let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+    assert!(max_error(&neutral(&bound, &net), &pts) <= 1e-9 * diag);
+    let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1] - 0.2, p[2] + 0.3]).collect();
+    let mut ws = bound.workspace();
+    let mut out = vec![[0.0; 3]; bound.n_vertices()];
+    bound
+        .deform(&FrameInput { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
+    let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0] + 0.1, p[1] - 0.2, p[2] + 0.3]).collect();
+    assert!(max_error(&out, &shifted) <= 1e-9 * diag);
 }

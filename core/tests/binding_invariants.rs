@@ -269,7 +269,13 @@ fn quad_and_nonplanar_pentagon_meshes_bind_and_reproduce_rigid_motions() {
         let pool: Vec<[f64; 3]> = net.points.iter().map(m).collect();
         let mut ws = b.workspace();
         let mut out = vec![[0.0; 3]; b.n_vertices()];
-        b.deform(&curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, None).unwrap();
+        b.deform(
+            &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+            &mut ws,
+            &mut out,
+            None,
+        )
+        .unwrap();
         let err = out
             .iter()
             .zip(pts.iter())
@@ -309,7 +315,13 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     let pool: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1], p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(
+        &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+        &mut ws,
+        &mut out,
+        None,
+    )
+    .unwrap();
     assert_eq!(&out[base as usize..], &pts[base as usize..], "the eyeball passes through");
     assert!((out[0][0] - pts[0][0] - 0.1).abs() < 1e-9, "the hand moves with the curvenet");
     assert_eq!(
@@ -329,10 +341,12 @@ fn far_self_overlapping_and_nonmanifold_inputs_are_typed_errors() {
     let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
     let e = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap_err();
     assert!(matches!(e, Error::SampleFarFromSurface { .. }), "{e}");
-    // Two curvenets over the same place overlap.
+    // Two curvenets over the same place overlap: bound with a warning, refused in strict mode.
     let c = Curvenet::new(&net.splines, &net.points).unwrap();
     let l1 = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
-    let e = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default()).unwrap_err();
+    let b = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default()).unwrap();
+    assert!(b.warnings().iter().any(|w| matches!(w, BindWarning::CurvesTouch { .. })), "{:?}", b.warnings());
+    let e = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default().with_strict(true)).unwrap_err();
     assert!(matches!(e, Error::CurvesOverlap { .. } | Error::CurvesCross { .. }), "{e}");
     // A non-manifold mesh: a third triangle on an edge of the hand.
     let mut counts: Vec<u32> = mesh.face_vertex_counts().collect();
@@ -366,7 +380,12 @@ fn two_curvenets_bind_to_one_mesh() {
     let mut ws = binding.workspace();
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
     binding
-        .deform(&curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None }, &mut ws, &mut out, None)
+        .deform(
+            &curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None, ..Default::default() },
+            &mut ws,
+            &mut out,
+            None,
+        )
         .unwrap();
     let hit_a = bvh.closest_point([-0.05, 0.45, 0.0]).unwrap();
     let va = mesh.face(hit_a.face as usize)[0] as usize;

@@ -130,7 +130,8 @@ fn cap_moves_rigidly(flip: bool, density: f64) {
     ];
     for (what, rot, shift) in motions {
         let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| rigid(&rot, shift, p)).collect();
-        b.deform(&FrameInput { posed: &[Some(&posed)], rest: None }, &mut ws, &mut out, None).unwrap();
+        b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+            .unwrap();
         let (mut worst, mut at) = (0.0f64, 0usize);
         for (v, (&o, &p)) in out.iter().zip(&pts).enumerate() {
             let e = norm(sub(o, rigid(&rot, shift, p)));

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use common::*;
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
-use curvenet_core::{Curvenet, CurvenetLayout, Mat3, SamplingOptions};
+use curvenet_core::{Adjustment, Curvenet, CurvenetLayout, Mat3, Rotate, SamplingOptions};
 
 struct Counting;
 
@@ -38,8 +38,9 @@ fn per_frame_evaluation_does_not_allocate() {
     whole_frame_solve();
 }
 
-/// A whole frame (`Binding::deform`, with and without a rest pose and with
-/// per-vertex gradients) allocates nothing once its workspace exists.
+/// A whole frame (`Binding::deform`, with and without a rest pose, with and
+/// without Curvenet Adjustments, with per-vertex gradients) allocates
+/// nothing once its workspace exists.
 fn whole_frame_solve() {
     let (mesh, pts) = plane(3.0, 23);
     let b = grid(0.05);
@@ -52,9 +53,31 @@ fn whole_frame_solve() {
     let mut ws = binding.workspace();
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
     let mut grads = vec![[0.0; 9]; binding.n_vertices()];
+    // An intersection, a joint and an anchor of the grid, every control of an adjustment used.
+    let sampling = layout.sampling();
+    let knot = |v: u32| {
+        (0..sampling.n_knots())
+            .map(|k| sampling.knot_point(k))
+            .find(|&p| layout.topology().valence(p as usize) == v)
+            .unwrap()
+    };
+    let tangents =
+        |p: u32| binding.orientation_plan(0).knot_tangents(sampling.knot_sample(p as usize).unwrap() as usize).len();
+    let adjustments = [
+        Adjustment::new(0, knot(4))
+            .with_translate([0.0, 0.0, 0.05])
+            .with_rotate(Rotate::EulerXyz([10.0, 0.0, 30.0]))
+            .with_scale([1.2, 1.0, 0.8]),
+        Adjustment::new(0, knot(2)).with_rotate(Rotate::Quaternion([0.9, 0.1, 0.0, 0.3])).with_attach_tangents(false),
+        Adjustment::new(0, knot(1)).with_tangent_translates(vec![[0.0, 0.0, 0.02]; tangents(knot(1))]),
+    ];
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     for rest in [None, Some(rest.as_slice())] {
-        let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest };
+        for adjustments in [&[][..], &adjustments[..]] {
+            let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest, adjustments };
+            binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
+        }
+        let input = curvenet_core::FrameInput { posed: &[None], rest, adjustments: &adjustments };
         binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
     }
     let after = ALLOCATIONS.load(Ordering::SeqCst);

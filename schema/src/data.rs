@@ -67,3 +67,28 @@ pub struct InbetweenData {
     /// Offsets, laid out like the parent's `offsets`.
     pub offsets: Vec<[f64; 3]>,
 }
+
+/// A `CurvenetAdjustment` prim (schema/README.md): one exposed knot of a
+/// curvenet. Its animated values are read per frame with
+/// `Stage::adjustments_at`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AdjustmentData {
+    /// Composed prim path (a child of the curvenet prim).
+    pub path: String,
+    /// The curvenet prim it adjusts (its parent).
+    pub curvenet: String,
+    /// `curvenet:knot`: the knot's index in the curvenet's pool.
+    pub knot: u32,
+    /// `curvenet:attachTangents` (true when not authored).
+    pub attach_tangents: bool,
+    /// The knot's tangent control points (pool indices, increasing): the
+    /// order of `curvenet:tangentTranslates`.
+    pub tangents: Vec<u32>,
+    /// Which rotate attribute is authored: `xformOp:rotateXYZ`,
+    /// `xformOp:orient`, or neither.
+    pub rotate: Option<String>,
+    /// The authored attributes among `xformOp:translate`, the rotate,
+    /// `xformOp:scale`, `curvenet:tangentTranslates`, with their time-sample
+    /// times (empty: a static value).
+    pub attributes: Vec<(String, Vec<f64>)>,
+}

@@ -229,11 +229,51 @@ pub struct BindingTimings {
     pub total_ms: f64,
 }
 
+impl From<&curvenet_core::binding::BindStats> for BindingStats {
+    /// The one conversion from core's counts to their wire names (the
+    /// service's binding response and `curvenet inspect --bind` both use it).
+    fn from(s: &curvenet_core::binding::BindStats) -> Self {
+        BindingStats {
+            mesh_vertices: s.mesh_vertices,
+            mesh_faces: s.mesh_faces,
+            samples: s.samples,
+            segments: s.segments,
+            cut_vertices: s.cut_vertices,
+            cut_faces: s.cut_faces,
+            cut_halfedges: s.cut_halfedges,
+            cracks: s.cracks,
+            islands_removed: s.islands_removed,
+            chord_paths: s.embedding.chord,
+            straightest_paths: s.embedding.straightest,
+            fallback_paths: s.embedding.fallback,
+            segments_left_out: s.embedding.disconnected,
+            detours: s.detours,
+            unknowns: s.unknowns,
+            constraints: s.constraints,
+            factor_nonzeros: s.factor_nonzeros,
+        }
+    }
+}
+
+impl BindingTimings {
+    /// Core's stage times with the analysis and wall time measured around them.
+    pub fn new(analysis_ms: f64, stages: &curvenet_core::binding::BindTimings, total_ms: f64) -> Self {
+        BindingTimings {
+            analysis_ms,
+            surface_ms: stages.surface_ms,
+            cutting_ms: stages.cutting_ms,
+            assembly_ms: stages.assembly_ms,
+            factor_ms: stages.factor_ms,
+            total_ms,
+        }
+    }
+}
+
 /// Something the binding did that the user should know about.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split` or
-    /// `segment_detour`.
+    /// `untouched_component`, `islands_removed`, `degenerate_cut_faces`, `faces_split`,
+    /// `curves_touch` or `segment_detour`.
     pub code: String,
     pub message: String,
     /// The segment a `segment_detour` warning is about.

@@ -146,7 +146,14 @@ fn main() {
     for round in 0..3 {
         for p in &poses {
             let t = Instant::now();
-            binding.deform(&FrameInput { posed: &[Some(p.as_slice())], rest: None }, &mut ws, &mut out, None).unwrap();
+            binding
+                .deform(
+                    &FrameInput { posed: &[Some(p.as_slice())], rest: None, ..Default::default() },
+                    &mut ws,
+                    &mut out,
+                    None,
+                )
+                .unwrap();
             core_ms.push(t.elapsed().as_secs_f64() * 1e3);
             if round == 0 {
                 expected.push(out.iter().flat_map(|q| q.map(|x| x as f32)).collect());

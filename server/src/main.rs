@@ -30,6 +30,8 @@ enum Command {
     Bake(cli::bake::Args),
     /// Merge the layers of a chunked bake into the layer one whole-range bake writes.
     Stitch(cli::stitch::Args),
+    /// Draft a starting curvenet on a mesh from plane sections (rings and lengthwise lines).
+    Draft(cli::draft::Args),
     /// Measure binding and per-frame solve times on the hand fixtures (the paper's Table 1).
     Bench(cli::bench::Args),
     /// Run the deformer HTTP service.
@@ -38,10 +40,21 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Not for the service (nor `inspect --serve`): hyper writes responses
+    // with writev, which would raise SIGPIPE on a reset connection.
+    let serves = match &cli.command {
+        Command::Serve(_) => true,
+        Command::Inspect(a) => a.serve.is_some(),
+        _ => false,
+    };
+    if !serves {
+        exit_quietly_on_closed_pipe();
+    }
     let result = match cli.command {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),
         Command::Stitch(args) => cli::stitch::run(&args),
+        Command::Draft(args) => cli::draft::run(&args),
         Command::Bench(args) => cli::bench::run(&args),
         Command::Serve(args) => cli::serve::run(&args),
     };
@@ -51,5 +64,18 @@ fn main() -> ExitCode {
             eprintln!("curvenet: error: {e:#}");
             ExitCode::from(e.exit_code())
         }
+    }
+}
+
+/// `curvenet inspect STAGE | head -5`: when the reader of stdout goes away,
+/// exit quietly as command-line tools do (the default SIGPIPE action), not
+/// with a panic from `println!`. Rust ignores SIGPIPE by default so that a
+/// write to a closed socket returns an error; the service keeps that, the
+/// other commands only write to files and the terminal.
+fn exit_quietly_on_closed_pipe() {
+    #[cfg(unix)]
+    // SAFETY: restoring a signal's default disposition, at startup, before any thread is spawned.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }

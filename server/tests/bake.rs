@@ -79,7 +79,7 @@ impl Reference {
         let mut out = vec![[0.0; 3]; n];
         let mut gradients = vec![[0.0; 9]; n];
         let mut ws = self.binding.workspace();
-        let frame = FrameInput { posed: &posed, rest: rest.as_deref() };
+        let frame = FrameInput { posed: &posed, rest: rest.as_deref(), ..Default::default() };
         self.binding.deform(&frame, &mut ws, &mut out, Some(&mut gradients)).unwrap();
         let shapes = self
             .mesh

@@ -62,7 +62,7 @@ fn deform_reference(b: &Binding, pool: Option<&[[f64; 3]]>) -> Vec<[f64; 3]> {
     let posed = [pool];
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &posed, rest: None }, &mut ws, &mut out, None).unwrap();
+    b.deform(&FrameInput { posed: &posed, rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     out
 }
 

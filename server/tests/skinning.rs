@@ -124,7 +124,12 @@ impl Reference {
         let mut ws = self.binding.workspace();
         let mut gradients = vec![[0.0; 9]; out.len()];
         self.binding
-            .deform(&FrameInput { posed: &posed, rest: Some(rest) }, &mut ws, &mut out, Some(&mut gradients))
+            .deform(
+                &FrameInput { posed: &posed, rest: Some(rest), ..Default::default() },
+                &mut ws,
+                &mut out,
+                Some(&mut gradients),
+            )
             .unwrap();
         if let Some(shapes) = &self.after {
             let mesh = self.stage.deformed_meshes().unwrap().remove(0);

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pxr import Sdf, Usd, UsdGeom, UsdSkel, Vt
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
 REPO = Path(__file__).resolve().parents[2]
 FIXTURES = REPO / "fixtures"
@@ -25,8 +25,12 @@ STAGES = sorted(MANIFEST["stages"])
 SHOT = "shots/hand_wave/shot.usda"
 SKINNED = "shots/hand_skinned/shot.usda"
 RIGGED = "shots/hand_rigged/shot.usda"
+ADJUSTED = "shots/hand_adjusted/shot.usda"
 HAND_STAGES = [f"hand/{n}" for n in
                ("hand_1k4.usda", "hand_closed.usda", "hand_lowres.usda", "hand_22k.usdc", "hand_94k.usdc")]
+CORPUS_STAGES = [f"corpus/{n}" for n in
+                 ("fish_cc2.usda", "fish_cc3.usdc", "penguin_cc2.usda", "penguin_cc3.usdc", "fish.usdc",
+                  "penguin.usda", "scorpion.usdc", "koala.usdc")]
 
 
 # ----------------------------------------------------------------------------
@@ -110,7 +114,8 @@ def expected_offsets(full, inbetweens, weight):
 
 def test_manifest_lists_every_composed_stage():
     assert MANIFEST["format"] == 1
-    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, RIGGED] + HAND_STAGES)
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, RIGGED, ADJUSTED]
+                            + HAND_STAGES + CORPUS_STAGES)
     for rel in STAGES:
         assert (FIXTURES / rel).is_file(), rel
 
@@ -480,6 +485,65 @@ def test_shot_curls_only_the_index_finger():
     assert s.GetFramesPerSecond() == 24
 
 
+@pytest.mark.parametrize("rel", STAGES)
+def test_adjustments(rel):
+    """CurvenetAdjustment prims (schema/README.md) as the manifest says: children of
+    their curvenet, a static knot that is a spline endpoint, the knot's tangents by the
+    contract's rule (recomputed here from the composed indices), one rotate at most,
+    and every value and time sample."""
+    s, want = stage(rel), MANIFEST["stages"][rel].get("adjustments", {})
+    found = sorted(str(p.GetPath()) for p in s.Traverse() if p.GetTypeName() == "CurvenetAdjustment")
+    assert found == sorted(want)
+    for path, w in want.items():
+        prim = s.GetPrimAtPath(path)
+        assert str(prim.GetParent().GetPath()) == w["curvenet"]
+        knot = prim.GetAttribute("curvenet:knot")
+        assert knot.GetVariability() == Sdf.VariabilityUniform and knot.GetNumTimeSamples() == 0
+        assert knot.Get() == w["knot"]
+        attach = prim.GetAttribute("curvenet:attachTangents")
+        assert (attach.Get() if attach and attach.HasAuthoredValue() else True) == w["attach_tangents"]
+        indices = np.asarray(pool_primvar(s.GetPrimAtPath(w["curvenet"])).GetIndices()).reshape(-1, 4)
+        val = valences(indices)
+        assert val[w["knot"]] == w["valence"]
+        tangents = sorted({int(h) for sp in indices for e, h in ((sp[0], sp[1]), (sp[3], sp[2]))
+                           if int(e) == w["knot"] and int(h) != int(e) and int(h) not in val})
+        assert tangents == w["tangents"], path
+        rotates = [n for n in ("xformOp:rotateXYZ", "xformOp:orient") if prim.GetAttribute(n).HasAuthoredValue()]
+        assert rotates == ([w["rotate"]] if w["rotate"] else [])
+        for name, samples in w["values"].items():
+            attr = prim.GetAttribute(name)
+            assert [float(t) for t in attr.GetTimeSamples()] == [t for t, _ in samples if t is not None], name
+            for t, value in samples:
+                got = attr.Get(Usd.TimeCode.Default() if t is None else t)
+                if isinstance(got, (Gf.Quatf, Gf.Quatd)):
+                    got = [got.GetReal(), *got.GetImaginary()]
+                got = np.asarray(got, dtype=np.float64).ravel()
+                assert np.array_equal(got, np.asarray(value, dtype=np.float64).ravel()), f"{path} {name} at {t}"
+
+
+def test_adjusted_shot_layers_adjustments_over_the_skinned_shot():
+    s = stage(ADJUSTED)
+    assert list(s.GetRootLayer().subLayerPaths) == ["./adjust.usda", "../hand_skinned/shot.usda"]
+    layer = Sdf.Layer.FindOrOpen(str(FIXTURES / "shots/hand_adjusted/adjust.usda"))
+    # only opinions on existing prims and the new adjustment prims
+    for path in ("/Hand", "/Hand/Curvenet"):
+        assert layer.GetPrimAtPath(path).specifier == Sdf.SpecifierOver
+    # the curvenet is not articulated: it tracks the skinned rest pose
+    assert pool_primvar(s.GetPrimAtPath("/Hand/Curvenet")).GetTimeSamples() == []
+    # at frame 1 every adjustment is the identity
+    for prim in s.GetPrimAtPath("/Hand/Curvenet").GetChildren():
+        orient = prim.GetAttribute("xformOp:orient")
+        if orient and orient.HasAuthoredValue():
+            assert orient.Get(1) == Gf.Quatf(1.0), prim.GetPath()
+        for name in ("xformOp:translate", "xformOp:rotateXYZ", "curvenet:tangentTranslates"):
+            attr = prim.GetAttribute(name)
+            if attr and attr.GetNumTimeSamples():
+                assert not np.asarray(attr.Get(1), dtype=np.float64).any(), f"{prim.GetPath()} {name}"
+        scale = prim.GetAttribute("xformOp:scale")
+        if scale and scale.HasAuthoredValue():
+            assert tuple(scale.Get(1)) == (1.0, 1.0, 1.0)
+
+
 # ----------------------------------------------------------------------------
 # the skinned shot: the rest pose is baked linear blend skinning
 
@@ -752,6 +816,117 @@ def test_rigged_reference_is_usd_cores_skinning_after_the_blend_shape(frame):
         np.testing.assert_allclose(lbs.astype(np.float64), neutral_hand().astype(np.float64), rtol=0, atol=1e-6)
     else:
         assert diff > 1e-4, "dual quaternions should differ from linear blending"
+
+
+# ----------------------------------------------------------------------------
+# the robustness corpus
+
+
+def obj_counts(name):
+    """(vertices, faces, sum of face sizes) of a vendored OBJ, read here without the generator."""
+    import gzip
+    v = f = corners = 0
+    with gzip.open(FIXTURES / "meshes" / (name + ".obj.gz"), "rt", encoding="utf-8") as fh:
+        for line in fh:
+            if line.startswith("v "):
+                v += 1
+            elif line.startswith("f "):
+                f += 1
+                corners += len(line.split()) - 1
+    return v, f, corners
+
+
+# fixture -> (source mesh, Catmull-Clark levels, creature)
+CORPUS_SOURCES = {
+    "corpus/fish_cc2.usda": ("fish_control_mesh", 2, "Fish"),
+    "corpus/fish_cc3.usdc": ("fish_control_mesh", 3, "Fish"),
+    "corpus/penguin_cc2.usda": ("penguin_control_mesh", 2, "Penguin"),
+    "corpus/penguin_cc3.usdc": ("penguin_control_mesh", 3, "Penguin"),
+    "corpus/fish.usdc": ("fish", 0, "Fish"),
+    "corpus/penguin.usda": ("penguin", 0, "Penguin"),
+    "corpus/scorpion.usdc": ("scorpion_low_resolution", 0, "Scorpion"),
+    "corpus/koala.usdc": ("koala", 0, "Koala"),
+}
+
+
+@pytest.mark.parametrize("rel", CORPUS_STAGES)
+def test_corpus_mesh_counts_topology_and_attribution(rel):
+    source, levels, creature = CORPUS_SOURCES[rel]
+    s = stage(rel)
+    assert s.GetDefaultPrim().GetPath() == Sdf.Path("/" + creature)
+    mesh = UsdGeom.Mesh(s.GetPrimAtPath(f"/{creature}/Mesh"))
+    counts = np.array(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
+    indices = np.array(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
+    n_points = len(mesh.GetPointsAttr().Get())
+    # Catmull-Clark on a closed mesh: V' = V + E + F, F' = sum of face sizes (all quads), E' = 2E + sum.
+    v, f, corners = obj_counts(source)
+    e = corners // 2
+    for _ in range(levels):
+        v, f, e, corners = v + e + f, corners, 2 * e + corners, 4 * corners
+    assert (n_points, len(counts)) == (v, f)
+    if levels:
+        assert set(counts.tolist()) == {4}
+    # closed and edge-manifold: every undirected edge in exactly two faces, once each way
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    local = np.arange(len(indices)) - np.repeat(starts, counts)
+    nxt = indices[np.repeat(starts, counts) + (local + 1) % np.repeat(counts, counts)]
+    directed = set(zip(indices.tolist(), nxt.tolist()))
+    assert len(directed) == len(indices), "a directed edge appears twice (inconsistent orientation)"
+    assert all((b, a) in directed for a, b in directed), "an edge with one face (a hole)"
+    doc = s.GetRootLayer().documentation
+    assert "odedstein/meshes" in doc and ("public domain" in doc or "CC BY" in doc)
+
+
+def test_catmull_clark_of_a_cube():
+    """One step on the cube [-1,1]^3: the rules give corner (5/9,5/9,5/9), edge (3/4,3/4,0), face (1,0,0)."""
+    sys.path.insert(0, str(FIXTURES))
+    from generate import catmull_clark
+    pts = [(x, y, z) for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]
+    idx = {p: i for i, p in enumerate(pts)}
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            # the face's four corners, counter-clockwise seen from outside
+            u, v = (axis + 1) % 3, (axis + 2) % 3
+            ring = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            if sign < 0:
+                ring = ring[::-1]
+            face = []
+            for a, b in ring:
+                p = [0.0, 0.0, 0.0]
+                p[axis], p[u], p[v] = sign, a, b
+                face.append(idx[tuple(p)])
+            faces.append(face)
+    points, counts, quads = catmull_clark(np.array(pts), [4] * 6, np.array(faces).ravel())
+    assert len(points) == 8 + 12 + 6 and list(counts) == [4] * 24
+    corner = points[idx[(1.0, 1.0, 1.0)]]
+    np.testing.assert_allclose(corner, [5 / 9, 5 / 9, 5 / 9], atol=1e-15)
+    assert any(np.allclose(p, [0.75, 0.75, 0.0], atol=1e-15) for p in points[8:20])
+    assert any(np.allclose(p, [1.0, 0.0, 0.0], atol=1e-15) for p in points[20:])
+    # every new quad keeps its parent face's outward orientation
+    quads = np.asarray(quads).reshape(-1, 4)
+    for q in quads:
+        a, b, c = points[q[0]], points[q[1]], points[q[2]]
+        centre = points[q].mean(axis=0)
+        assert np.dot(np.cross(b - a, c - a), centre) > 0
+
+
+@pytest.mark.parametrize("rel", CORPUS_STAGES)
+def test_corpus_draft_record(rel):
+    """The manifest records how each corpus curvenet was drafted; its counts agree with the curvenet."""
+    want = MANIFEST["stages"][rel]
+    d = want["draft"]
+    (path, net), = want["curvenets"].items()
+    pv = pool_primvar(stage(rel).GetPrimAtPath(path))
+    indices = np.array(pv.GetIndices(), dtype=np.int64).reshape(-1, 4)
+    val = valences(indices.ravel())
+    assert sum(1 for v in val.values() if v >= 4) == d["intersections"]
+    assert sum(1 for v in val.values() if v == 3) == d["t_junctions"]
+    assert sum(1 for v in val.values() if v == 1) == d["anchors"]
+    assert len(val) == d["knots"]
+    assert 0.0 < d["options"]["offset"] <= 0.02
+    assert len(d["rings"]) == d["options"]["rings"]
+    assert abs(np.linalg.norm(d["axis"]) - 1.0) < 1e-12
 
 
 # ----------------------------------------------------------------------------

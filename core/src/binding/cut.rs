@@ -56,6 +56,11 @@ pub struct CutInput<'a> {
     pub sample_ref: &'a [SampleRef],
     /// Each segment as users number it (curvenet, spline, segment within the spline).
     pub segment_ref: &'a [SegmentRef],
+    /// The curve of each segment, numbered across all curvenets (samples of
+    /// one curve merging into one cut-vertex is no touch; of two, it is).
+    pub segment_curve: &'a [u32],
+    /// Checked per sample, segment and face ([`Error::Cancelled`]).
+    pub cancel: &'a crate::Cancel,
 }
 
 impl CutInput<'_> {
@@ -166,6 +171,30 @@ pub struct CutMesh {
     pub(crate) n_islands_samples: usize,
     pub(crate) embedding: EmbeddingCounts,
     pub(crate) detours: Vec<Detour>,
+    /// Curve points of cut-vertices on more than one segment, beyond their
+    /// primary `CutVertex::curve` (see [`Touch`]).
+    pub(crate) extra_curve: HashMap<u32, Vec<CurvePoint>>,
+    pub(crate) touches: Vec<Touch>,
+}
+
+/// Two segments whose surface paths meet at a cut-vertex that is not a
+/// shared knot: a path passing through another segment's sample or
+/// crossing, or two paths crossing inside a face. Their curves need not
+/// touch in space: near a concavity drawn beyond its centre of curvature,
+/// or a thin part, closest-point projection folds or swaps curves. The
+/// cut-mesh meets them at the cut-vertex as at an intersection, each corner
+/// taking the side of the segment nearest it clockwise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touch {
+    /// The segment whose path reached the vertex, and the one already there
+    /// (global numbering of [`CutInput::segments`]).
+    pub segment: u32,
+    pub other: u32,
+    pub vertex: u32,
+    /// The two paths run over a stretch from `vertex` (one curve folding
+    /// back over itself, or two curves projecting onto one line, as either
+    /// side of a thin part does), rather than meeting at a point.
+    pub stretch: bool,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -174,6 +203,9 @@ struct Piece {
     b: u32,
     face: u32,
     segment: u32,
+    /// Arc-length fractions of `a` and `b` along the segment.
+    ta: f64,
+    tb: f64,
 }
 
 impl CutMesh {
@@ -186,6 +218,7 @@ impl CutMesh {
         let limit = options.max_projection_distance * surface.diagonal;
         let mut sample_loc = Vec::with_capacity(input.samples.len());
         for (i, q) in input.samples.iter().enumerate() {
+            input.cancel.check_every(i, "cutting")?;
             let hit = surface.bvh.closest_point(*q)?;
             if hit.distance > limit {
                 let at = input.sample_ref.get(i).copied().unwrap_or(SampleRef {
@@ -224,6 +257,15 @@ impl CutMesh {
                 detours.push(Detour { segment: s as u32, path_length: f64::INFINITY, segment_length: length });
             }
         }
+        // A segment of each sample, to name touches.
+        let mut sample_segment = vec![INVALID; input.samples.len()];
+        for (s, seg) in input.segments.iter().enumerate() {
+            for &i in seg {
+                if sample_segment[i as usize] == INVALID {
+                    sample_segment[i as usize] = s as u32;
+                }
+            }
+        }
         let mut sample_vertex = Vec::with_capacity(input.samples.len());
         for (i, &loc) in sample_loc.iter().enumerate() {
             if !sample_used[i] {
@@ -232,9 +274,22 @@ impl CutMesh {
             }
             let cv = reg.insert(loc, tol);
             let v = &mut reg.vertices[cv as usize];
-            if v.mask & (SAMPLE | CROSSING) == 0 {
-                v.curve = CurvePoint::Sample(i as u32);
+            match v.curve {
+                CurvePoint::Sample(j) if v.mask & SAMPLE != 0 => {
+                    // Samples of two different curves projecting to one point touch there.
+                    let (si, sj) = (sample_segment[i], sample_segment[j as usize]);
+                    let curve = |s: u32| input.segment_curve.get(s as usize).copied();
+                    if si != INVALID && sj != INVALID && curve(si) != curve(sj) {
+                        reg.touches.push(Touch { segment: si, other: sj, vertex: cv, stretch: false });
+                    }
+                }
+                _ => {
+                    if v.mask & (SAMPLE | CROSSING) == 0 {
+                        v.curve = CurvePoint::Sample(i as u32);
+                    }
+                }
             }
+            let v = &mut reg.vertices[cv as usize];
             v.mask |= SAMPLE;
             sample_vertex.push(cv);
         }
@@ -243,6 +298,7 @@ impl CutMesh {
         let mut path = Path::default();
         let mut pos: Vec<DVec3> = Vec::new();
         for (s, &[i, j]) in input.segments.iter().enumerate() {
+            input.cancel.check_every(s, "cutting")?;
             if !segment_embedded[s] {
                 continue;
             }
@@ -272,29 +328,39 @@ impl CutMesh {
                 detours.push(Detour { segment: s as u32, path_length: total, segment_length: length });
             }
             let mut prev = ca;
+            let mut t_prev = 0.0;
             let mut acc = 0.0;
             for k in 1..path.points.len() {
                 acc += (pos[k] - pos[k - 1]).length();
+                let t = if k + 1 == path.points.len() { 1.0 } else { acc / total };
                 let cv = if k + 1 == path.points.len() {
                     cb
                 } else {
                     let cv = reg.insert(path.points[k], tol);
-                    let v = &mut reg.vertices[cv as usize];
-                    if v.mask & (SAMPLE | CROSSING) != 0 {
+                    let point = CurvePoint::Crossing { segment: s as u32, t };
+                    if reg.vertices[cv as usize].mask & (SAMPLE | CROSSING) != 0 {
+                        // Another segment's sample or crossing: the paths touch here.
                         let other = reg.segment_at(cv, input);
-                        return Err(Error::CurvesOverlap {
-                            segment: input.segment(s as u32),
-                            other: input.segment(other),
-                        });
+                        reg.touches.push(Touch { segment: s as u32, other, vertex: cv, stretch: false });
+                        reg.extra.entry(cv).or_default().push(point);
+                    } else {
+                        reg.vertices[cv as usize].curve = point;
                     }
-                    v.mask |= CROSSING;
-                    v.curve = CurvePoint::Crossing { segment: s as u32, t: acc / total };
+                    reg.vertices[cv as usize].mask |= CROSSING;
                     cv
                 };
                 if cv != prev {
-                    pieces.push(Piece { a: prev, b: cv, face: path.faces[k - 1], segment: s as u32 });
+                    pieces.push(Piece {
+                        a: prev,
+                        b: cv,
+                        face: path.faces[k - 1],
+                        segment: s as u32,
+                        ta: t_prev,
+                        tb: t,
+                    });
                 }
                 prev = cv;
+                t_prev = t;
             }
         }
         let mut cut = reg.build(surface, input, pieces, sample_vertex)?;
@@ -369,6 +435,23 @@ impl CutMesh {
     pub fn detours(&self) -> &[Detour] {
         &self.detours
     }
+    /// Where two segments' paths meet at a cut-vertex that is not a shared knot.
+    pub fn touches(&self) -> &[Touch] {
+        &self.touches
+    }
+    /// Every curve point of cut-vertex `v`: its primary one, then those of
+    /// further segments whose paths reach it (see [`Touch`]).
+    pub fn curve_points(&self, v: u32) -> impl Iterator<Item = CurvePoint> + '_ {
+        std::iter::once(self.vertices[v as usize].curve).chain(self.extra_curve.get(&v).into_iter().flatten().copied())
+    }
+    /// The arc-length fraction at which segment `segment` crosses cut-vertex
+    /// `v`, if its path passes through `v` (not at one of its samples).
+    pub fn crossing_t(&self, v: u32, segment: u32) -> Option<f64> {
+        self.curve_points(v).find_map(|c| match c {
+            CurvePoint::Crossing { segment: s, t } if s == segment => Some(t),
+            _ => None,
+        })
+    }
 }
 
 /// Cut-vertices under construction, merged by location.
@@ -379,6 +462,9 @@ struct Registry<'s> {
     on_edge: HashMap<u32, Vec<(f64, u32)>>,
     /// Per face: cut-vertices inside it.
     in_face: HashMap<u32, Vec<u32>>,
+    /// Curve points beyond a vertex's primary one (see [`Touch`]).
+    extra: HashMap<u32, Vec<CurvePoint>>,
+    touches: Vec<Touch>,
 }
 
 impl<'s> Registry<'s> {
@@ -391,7 +477,14 @@ impl<'s> Registry<'s> {
                 curve: CurvePoint::None,
             })
             .collect();
-        Self { surface, vertices, on_edge: HashMap::default(), in_face: HashMap::default() }
+        Self {
+            surface,
+            vertices,
+            on_edge: HashMap::default(),
+            in_face: HashMap::default(),
+            extra: HashMap::default(),
+            touches: Vec::new(),
+        }
     }
 
     /// The cut-vertex at `loc`, merging with one closer than `tol`.
@@ -444,6 +537,173 @@ impl<'s> Registry<'s> {
         he.face_halfedges(f).find(|&h| on(la, h) && on(lb, h)).map(|h| s.canonical(h))
     }
 
+    /// The chords of face `f` with every crossing between two of them made
+    /// a cut-vertex on both (a [`Touch`]), and every chord end lying inside
+    /// another chord made a vertex of that chord too, so that the face's
+    /// graph is planar. Collinear chords are cut at each other's ends and
+    /// their shared pieces merged (the first segment's is kept): a stretch
+    /// [`Touch`].
+    fn split_crossing_chords(&mut self, surface: &Surface, f: u32, chords: &[Piece]) -> Vec<Piece> {
+        let n = chords.len();
+        let p2 = |v: u32, this: &Self| surface.position_2d(f, this.vertices[v as usize].loc);
+        // Per chord: (parameter along it, cut-vertex, arc-length fraction along its segment).
+        let mut cuts: Vec<Vec<(f64, u32, f64)>> = vec![Vec::new(); n];
+        let mut created: Vec<u32> = Vec::new();
+        let eps = 1e-9;
+        for i in 0..n {
+            for j in i + 1..n {
+                let (ci, cj) = (chords[i], chords[j]);
+                let shared = [ci.a, ci.b].iter().filter(|v| [cj.a, cj.b].contains(v)).count();
+                if shared == 2 {
+                    continue; // the same chord twice: merged below
+                }
+                let (a, b, c, d) = (p2(ci.a, self), p2(ci.b, self), p2(cj.a, self), p2(cj.b, self));
+                let (r, q) = (b - a, d - c);
+                let den = r.perp_dot(q);
+                let scale = r.length() * q.length();
+                if den.abs() <= 1e-12 * scale {
+                    // Parallel. Collinear and overlapping: each chord is cut at the
+                    // other's ends that lie inside it; the shared piece is merged below.
+                    let rr = r.length_squared();
+                    let qq = q.length_squared();
+                    if (c - a).perp_dot(r).abs() > 1e-12 * rr.max(1e-300) {
+                        continue;
+                    }
+                    let (u0, u1) = ((c - a).dot(r) / rr, (d - a).dot(r) / rr);
+                    if u0.max(u1) > eps && u0.min(u1) < 1.0 - eps && ci.segment != cj.segment {
+                        let vertex = if (eps..1.0 - eps).contains(&u0) { cj.a } else { cj.b };
+                        self.touches.push(Touch { segment: cj.segment, other: ci.segment, vertex, stretch: true });
+                    }
+                    for (v, x) in [(cj.a, c), (cj.b, d)] {
+                        let u = (x - a).dot(r) / rr;
+                        if u > eps && u < 1.0 - eps && v != ci.a && v != ci.b {
+                            let t = ci.ta + u * (ci.tb - ci.ta);
+                            self.touch(v, ci.segment, t, cj.segment);
+                            cuts[i].push((u, v, t));
+                        }
+                    }
+                    for (v, x) in [(ci.a, a), (ci.b, b)] {
+                        let w = (x - c).dot(q) / qq;
+                        if w > eps && w < 1.0 - eps && v != cj.a && v != cj.b {
+                            let t = cj.ta + w * (cj.tb - cj.ta);
+                            self.touch(v, cj.segment, t, ci.segment);
+                            cuts[j].push((w, v, t));
+                        }
+                    }
+                    continue;
+                }
+                if shared == 1 {
+                    continue; // meeting at a node
+                }
+                let u = (c - a).perp_dot(q) / den;
+                let w = (c - a).perp_dot(r) / den;
+                if !(-eps..=1.0 + eps).contains(&u) || !(-eps..=1.0 + eps).contains(&w) {
+                    continue;
+                }
+                let end_i = u <= eps || u >= 1.0 - eps;
+                let end_j = w <= eps || w >= 1.0 - eps;
+                let t_i = ci.ta + u.clamp(0.0, 1.0) * (ci.tb - ci.ta);
+                let t_j = cj.ta + w.clamp(0.0, 1.0) * (cj.tb - cj.ta);
+                match (end_i, end_j) {
+                    (true, true) => continue, // two chord ends a hair apart: the merge tolerance's business
+                    (true, false) => {
+                        // An end of chord i lies inside chord j.
+                        let v = if u < 0.5 { ci.a } else { ci.b };
+                        self.touch(v, cj.segment, t_j, ci.segment);
+                        cuts[j].push((w, v, t_j));
+                    }
+                    (false, true) => {
+                        let v = if w < 0.5 { cj.a } else { cj.b };
+                        self.touch(v, ci.segment, t_i, cj.segment);
+                        cuts[i].push((u, v, t_i));
+                    }
+                    (false, false) => {
+                        let x = a + r * u;
+                        let loc = surface.face_point(f, x);
+                        let pos = surface.position(loc);
+                        let tol = 1e-9 * surface.diagonal;
+                        let v = match created.iter().find(|&&v| (self.vertices[v as usize].pos - pos).length() <= tol) {
+                            Some(&v) => v,
+                            None => {
+                                let v = self.vertices.len() as u32;
+                                self.vertices.push(CutVertex {
+                                    loc,
+                                    pos,
+                                    mask: CROSSING,
+                                    curve: CurvePoint::Crossing { segment: ci.segment, t: t_i },
+                                });
+                                created.push(v);
+                                v
+                            }
+                        };
+                        if !matches!(self.vertices[v as usize].curve, CurvePoint::Crossing { segment, .. } if segment == ci.segment)
+                        {
+                            self.touch(v, ci.segment, t_i, cj.segment);
+                        }
+                        self.touch(v, cj.segment, t_j, ci.segment);
+                        cuts[i].push((u, v, t_i));
+                        cuts[j].push((w, v, t_j));
+                    }
+                }
+            }
+        }
+        let mut out = Vec::with_capacity(n + created.len() * 2);
+        for (c, mut at) in chords.iter().zip(cuts) {
+            at.sort_by(|x, y| x.0.total_cmp(&y.0));
+            let (mut a, mut ta) = (c.a, c.ta);
+            for (_, v, t) in at {
+                if v != a {
+                    out.push(Piece { a, b: v, ta, tb: t, ..*c });
+                }
+                (a, ta) = (v, t);
+            }
+            if a != c.b {
+                out.push(Piece { a, ta, ..*c });
+            }
+        }
+        // Pieces of two segments between the same two vertices (a curve
+        // folding back over itself, or two curves over one stretch): one
+        // chord, the first segment's; the other segment's ends are touches.
+        let mut seen: HashMap<(u32, u32), u32> = HashMap::default();
+        let mut merged = Vec::with_capacity(out.len());
+        for p in out {
+            let key = (p.a.min(p.b), p.a.max(p.b));
+            match seen.get(&key) {
+                Some(&other) => {
+                    if other != p.segment {
+                        self.touches.push(Touch { segment: p.segment, other, vertex: p.a, stretch: true });
+                        for (v, t) in [(p.a, p.ta), (p.b, p.tb)] {
+                            if !self.on_segment(v, p.segment) {
+                                self.touch(v, p.segment, t, other);
+                            }
+                        }
+                    }
+                }
+                None => {
+                    seen.insert(key, p.segment);
+                    merged.push(p);
+                }
+            }
+        }
+        merged
+    }
+
+    /// Whether cut-vertex `v` already carries a curve point of `segment`
+    /// (one of its crossings; its samples carry their slots through the
+    /// segment's own halfedges).
+    fn on_segment(&self, v: u32, segment: u32) -> bool {
+        let is = |c: &CurvePoint| matches!(c, CurvePoint::Crossing { segment: s, .. } if *s == segment);
+        is(&self.vertices[v as usize].curve) || self.extra.get(&v).is_some_and(|e| e.iter().any(is))
+    }
+
+    /// Records that `segment` passes through cut-vertex `v` (at arc-length
+    /// fraction `t`), where `other`'s path already is.
+    fn touch(&mut self, v: u32, segment: u32, t: f64, other: u32) {
+        self.vertices[v as usize].mask |= CROSSING;
+        self.extra.entry(v).or_default().push(CurvePoint::Crossing { segment, t });
+        self.touches.push(Touch { segment, other, vertex: v, stretch: false });
+    }
+
     fn build(
         mut self,
         surface: &Surface,
@@ -458,7 +718,8 @@ impl<'s> Registry<'s> {
         // Split pieces into chords (per face) and pieces along edges (per canonical edge).
         let mut chords: HashMap<u32, Vec<Piece>> = HashMap::default();
         let mut along: HashMap<(u32, u32), u32> = HashMap::default(); // (cv, cv) on an edge -> segment, directed a->b
-        for p in &pieces {
+        for (k, p) in pieces.iter().enumerate() {
+            input.cancel.check_every(k, "cutting")?;
             if let Some(c) = self.common_edge(p.face, p.a, p.b) {
                 // Every sub-piece of the edge between a and b runs along the segment.
                 let t_of = |v: u32| -> f64 {
@@ -479,10 +740,30 @@ impl<'s> Registry<'s> {
                 chain.extend(self.on_edge.get(&c).into_iter().flatten().copied());
                 chain.push((1.0, he.head(c)));
                 let (lo, hi) = (ta.min(tb), ta.max(tb));
-                let inside: Vec<u32> = chain.iter().filter(|(t, _)| *t >= lo && *t <= hi).map(|x| x.1).collect();
+                let inside: Vec<(f64, u32)> = chain.iter().filter(|(t, _)| *t >= lo && *t <= hi).copied().collect();
+                // Vertices of other segments inside the stretch are on this segment too.
+                for &(t, v) in &inside {
+                    if v != p.a && v != p.b && !self.on_segment(v, p.segment) {
+                        let other = self.segment_at(v, input);
+                        let along_t = p.ta + (t - ta) / (tb - ta) * (p.tb - p.ta);
+                        self.touch(v, p.segment, along_t, other);
+                    }
+                }
                 for w in inside.windows(2) {
-                    let (x, y) = if ta <= tb { (w[0], w[1]) } else { (w[1], w[0]) };
-                    along.insert((x, y), p.segment);
+                    let (x, y) = if ta <= tb { (w[0].1, w[1].1) } else { (w[1].1, w[0].1) };
+                    // A stretch already along another segment (a curve folding back
+                    // over itself along an edge) keeps the first; its ends touch.
+                    let taken = along.get(&(x, y)).or_else(|| along.get(&(y, x))).copied();
+                    match taken {
+                        // Its ends carry the other segment's curve points already.
+                        Some(other) if other != p.segment => {
+                            self.touches.push(Touch { segment: p.segment, other, vertex: x, stretch: true });
+                        }
+                        Some(_) => {}
+                        None => {
+                            along.insert((x, y), p.segment);
+                        }
+                    }
                 }
             } else {
                 chords.entry(p.face).or_default().push(*p);
@@ -496,6 +777,7 @@ impl<'s> Registry<'s> {
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
         for f in 0..surface.mesh.n_faces() as u32 {
+            input.cancel.check("cutting")?; // per face: a face's graph costs up to its pieces squared
             // Fast path: a face no segment touches is its own single cut-face.
             let untouched = !chords.contains_key(&f)
                 && he.face_halfedges(f).all(|h| !self.on_edge.contains_key(&surface.canonical(h)));
@@ -535,7 +817,9 @@ impl<'s> Registry<'s> {
                 pslg.edge(k, (k + 1) % nb, INVALID, false);
             }
             if let Some(list) = chords.get(&f) {
-                for p in list {
+                let split = self.split_crossing_chords(surface, f, list);
+                removed_vertices.resize(self.vertices.len(), false);
+                for p in &split {
                     let (a, b) = (p.a, p.b);
                     let la = pslg.node(a, surface.position_2d(f, self.vertices[a as usize].loc), false);
                     let lb = pslg.node(b, surface.position_2d(f, self.vertices[b as usize].loc), false);
@@ -617,6 +901,8 @@ impl<'s> Registry<'s> {
             n_islands_samples: n_island_samples,
             embedding: EmbeddingCounts::default(),
             detours: Vec::new(),
+            extra_curve: self.extra,
+            touches: self.touches,
         })
     }
 }
@@ -861,5 +1147,25 @@ impl Pslg {
             return (s, false);
         }
         (INVALID, false)
+    }
+}
+
+impl CutMesh {
+    /// Heap bytes held by the cut-mesh (its vertices and halfedge arrays).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.vertices)
+            + bytes(&self.tail)
+            + bytes(&self.twin)
+            + bytes(&self.face)
+            + bytes(&self.segment)
+            + bytes(&self.forward)
+            + bytes(&self.face_start)
+            + bytes(&self.parent)
+            + bytes(&self.sample_vertex)
+            + bytes(&self.detours)
+            + bytes(&self.touches)
+            + self.extra_curve.capacity() * std::mem::size_of::<(u32, Vec<crate::binding::cut::CurvePoint>)>()
+            + self.extra_curve.values().map(bytes).sum::<usize>()
     }
 }

@@ -126,7 +126,14 @@ impl Surface {
                 return self.edge_location(h, t);
             }
         }
-        // Inside: the triangle with the largest minimum barycentric coordinate.
+        self.face_point(f, p)
+    }
+
+    /// The face location of the point at 2D position `p` of face `f`
+    /// (inside or on its boundary; no snapping to vertices or edges).
+    pub fn face_point(&self, f: u32, p: DVec2) -> Location {
+        let c = &self.corners_2d;
+        // The triangle with the largest minimum barycentric coordinate.
         let mut best = (f64::NEG_INFINITY, 0u32, [0.0; 3]);
         for (k, tri) in self.face_triangles(f) {
             let bary = barycentric_2d(p, tri.map(|i| c[i as usize]));

@@ -40,6 +40,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use crate::cancel::Cancel;
 use crate::cholesky::{Cholesky, SymmetricTriplets};
 use crate::curvenet::{CurvenetLayout, Side};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
@@ -53,7 +54,7 @@ pub use cut::{
 pub use surface::Surface;
 
 /// Options of [`Binding::new`].
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 #[non_exhaustive]
 pub struct BindOptions {
     pub cut: CutOptions,
@@ -63,17 +64,28 @@ pub struct BindOptions {
     /// curvenet touches (its vertices pass through), and segments whose
     /// surface path is a detour ([`BindWarning::SegmentDetour`]).
     pub strict: bool,
+    /// Checked between the binding's stages and inside its long loops
+    /// (cutting per segment and per face, assembly per face); raised, the
+    /// binding returns [`Error::Cancelled`]. The factorisation itself is one
+    /// uninterruptible call, checked before and after.
+    pub cancel: Cancel,
 }
 
 impl Default for BindOptions {
     fn default() -> Self {
-        Self { cut: CutOptions::default(), lambda: DEFAULT_LAMBDA, strict: false }
+        Self { cut: CutOptions::default(), lambda: DEFAULT_LAMBDA, strict: false, cancel: Cancel::default() }
     }
 }
 
 impl BindOptions {
     pub fn with_strict(mut self, strict: bool) -> Self {
         self.strict = strict;
+        self
+    }
+
+    /// Sets the cancellation flag the binding checks.
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
         self
     }
 }
@@ -89,6 +101,12 @@ pub enum BindWarning {
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
     DegenerateCutFaces { count: usize },
+    /// Segments whose surface paths meet where there is no shared knot
+    /// (`cut::Touch`): a path through another segment's sample or crossing,
+    /// two paths crossing inside a face, or two paths over one stretch.
+    /// Bound as if the curves met there. `examples` names the first few:
+    /// (segment, other, position).
+    CurvesTouch { count: usize, examples: Vec<(SegmentRef, SegmentRef, [f64; 3])> },
     /// Input faces folded over themselves in their own plane (strongly
     /// warped polygons) and were split into triangles ([`Surface::split_faces`]).
     FacesSplit { faces: Vec<u32> },
@@ -103,6 +121,11 @@ pub enum BindWarning {
     SegmentDetour { segment: SegmentRef, t: f64, position: [f64; 3], path_length: f64, segment_length: f64 },
 }
 
+impl BindWarning {
+    /// How many elements a warning lists at most.
+    pub const EXAMPLES: usize = 5;
+}
+
 impl std::fmt::Display for BindWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
@@ -115,6 +138,19 @@ impl std::fmt::Display for BindWarning {
             }
             BindWarning::DegenerateCutFaces { count } => {
                 write!(f, "{count} zero-area cut-faces were left out of the Laplacian")
+            }
+            BindWarning::CurvesTouch { count, examples } => {
+                let shown: Vec<String> = examples
+                    .iter()
+                    .map(|(a, b, [x, y, z])| format!("{a} and {b} at ({x:.4}, {y:.4}, {z:.4})"))
+                    .collect();
+                write!(
+                    f,
+                    "{count} point{} where two curves' projections onto the surface meet without a shared knot (a curve drawn across a concavity or a thin part, or two curves drawn close together), bound as if the curves met there: {}{}",
+                    if *count == 1 { "" } else { "s" },
+                    shown.join("; "),
+                    if *count > examples.len() { "; ..." } else { "" }
+                )
             }
             BindWarning::FacesSplit { faces } => {
                 let shown: Vec<String> = faces.iter().take(10).map(|f| f.to_string()).collect();
@@ -267,6 +303,8 @@ pub struct Binding {
     /// Per curvenet, per pool point: where it sits over the projection-pose
     /// surface (for tracking the knots to a rest pose).
     pub(crate) knots: Vec<Vec<KnotBinding>>,
+    /// Per curvenet: the neutral part of its knot orientations (Curvenet Adjuster).
+    pub(crate) orientation_plans: Vec<crate::adjust::OrientationPlan>,
     pub(crate) warnings: Vec<BindWarning>,
     pub(crate) stats: BindStats,
     pub(crate) timings: BindTimings,
@@ -285,6 +323,7 @@ impl Binding {
         options: &BindOptions,
     ) -> Result<Self> {
         let t0 = Instant::now();
+        options.cancel.check("the surface")?;
         let surface = Surface::new(mesh, projection_points)?;
         let t1 = Instant::now();
         Self::with_surface(surface, curvenets, options, ms(t0, t1))
@@ -300,12 +339,16 @@ impl Binding {
         if curvenets.is_empty() {
             return Err(Error::Empty { what: "the list of curvenets to bind" });
         }
+        let cancel = &options.cancel;
+        cancel.check("cutting")?;
         let t1 = Instant::now();
         // Concatenate the curvenets.
         let mut samples = Vec::new();
         let mut segments = Vec::new();
         let mut sample_ref = Vec::new();
         let mut segment_ref = Vec::new();
+        let mut segment_curve = Vec::new();
+        let mut n_curves = 0u32;
         let mut nets = Vec::new();
         let mut slot_of: HashMap<(u32, u8, Side), u32> = HashMap::default();
         let mut n_slots = 0u32;
@@ -323,6 +366,7 @@ impl Binding {
             for seg in layout.sampling().segments() {
                 segments.push(seg.samples.map(|i| i + range.sample));
                 segment_ref.push(SegmentRef { curvenet, spline: seg.spline, segment: seg.spline_segment });
+                segment_curve.push(n_curves + seg.curve);
                 for &i in &seg.samples {
                     sample_ref[first + i as usize].spline = seg.spline;
                 }
@@ -337,15 +381,51 @@ impl Binding {
                 }
             }
             n_slots += layout.constraints().len() as u32;
+            n_curves += layout.sampling().n_curves() as u32;
         }
         let cut = CutMesh::new(
             &surface,
-            CutInput { samples: &samples, segments: &segments, sample_ref: &sample_ref, segment_ref: &segment_ref },
+            CutInput {
+                samples: &samples,
+                segments: &segments,
+                sample_ref: &sample_ref,
+                segment_ref: &segment_ref,
+                segment_curve: &segment_curve,
+                cancel,
+            },
             &options.cut,
         )?;
         let mut warnings = Vec::new();
         if !surface.split_faces().is_empty() {
             warnings.push(BindWarning::FacesSplit { faces: surface.split_faces().to_vec() });
+        }
+        // Strict mode names a stretch first (the graver), else the first point.
+        let worst = cut.touches().iter().find(|t| t.stretch).or(cut.touches().first());
+        if let Some(first) = worst {
+            let at = |t: &cut::Touch| {
+                (segment_ref[t.segment as usize], segment_ref[t.other as usize], cut.vertex(t.vertex).pos.to_array())
+            };
+            if options.strict {
+                let (segment, other, _) = at(first);
+                let face = match cut.vertex(first.vertex).loc {
+                    locate::Location::Face { face, .. } => face,
+                    loc => {
+                        let mut faces = Vec::new();
+                        surface.faces_of(loc, &mut faces);
+                        faces.first().copied().unwrap_or(0)
+                    }
+                };
+                return Err(if first.stretch {
+                    Error::CurvesOverlap { segment, other }
+                } else {
+                    Error::CurvesCross { segment, other, face: surface.input_face(face) }
+                });
+            }
+            let touches = cut.touches();
+            warnings.push(BindWarning::CurvesTouch {
+                count: touches.len(),
+                examples: touches.iter().take(BindWarning::EXAMPLES).map(at).collect(),
+            });
         }
         for d in cut.detours() {
             let seg = segment_ref[d.segment as usize];
@@ -366,9 +446,10 @@ impl Binding {
         let n_vertices = surface.mesh.n_vertices();
         let mut corner = vec![Corner::Fixed; cut.n_halfedges()];
         let mut crossings: Vec<CrossingRow> = Vec::new();
-        let mut crossing_row: HashMap<(u32, Side), u32> = HashMap::default();
+        let mut crossing_row: HashMap<(u32, u32, Side), u32> = HashMap::default();
         let mut vertex_is_curve = vec![false; n_vertices];
         for h in 0..cut.n_halfedges() as u32 {
+            cancel.check_every(h as usize, "assembly")?;
             let v = cut.tail(h);
             let cv = cut.vertex(v);
             if cv.mask & (SAMPLE | CROSSING) == 0 {
@@ -380,14 +461,16 @@ impl Binding {
             let (seg, side, end) = curve_side(&cut, h).ok_or_else(|| Error::Internal {
                 what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it"),
             })?;
-            let row = match cv.curve {
-                cut::CurvePoint::Crossing { segment, t } => {
-                    let key = (v, side);
+            // A vertex the segment's path passes through takes a crossing row
+            // of that segment; one of its samples, the sample's slot.
+            let row = match cut.crossing_t(v, seg) {
+                Some(t) => {
+                    let key = (v, seg, side);
                     match crossing_row.get(&key) {
                         Some(&r) => r,
                         None => {
-                            let lo = slot(&slot_of, segment, TAIL, side)?;
-                            let hi = slot(&slot_of, segment, HEAD, side)?;
+                            let lo = slot(&slot_of, seg, TAIL, side)?;
+                            let hi = slot(&slot_of, seg, HEAD, side)?;
                             let r = n_slots + crossings.len() as u32;
                             crossings.push(CrossingRow { lo, hi, t, vertex: v });
                             crossing_row.insert(key, r);
@@ -395,7 +478,7 @@ impl Binding {
                         }
                     }
                 }
-                _ => slot(&slot_of, seg, end, side)?,
+                None => slot(&slot_of, seg, end, side)?,
             };
             corner[h as usize] = Corner::Constraint(row);
         }
@@ -463,6 +546,7 @@ impl Binding {
         let mut corners = Vec::new();
         let mut degenerate = 0usize;
         for f in 0..cut.n_faces() as u32 {
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             corners.clear();
             corners.extend(hs.clone().map(|h| cut.vertex(cut.tail(h)).pos));
@@ -494,18 +578,27 @@ impl Binding {
             warnings.push(BindWarning::DegenerateCutFaces { count: degenerate });
         }
         let b = Csr::from_triplets(n_u, n_c, b_entries);
+        cancel.check("the factorisation")?;
         let t3 = Instant::now();
         let factor = if n_u == 0 {
             Cholesky::new(&SymmetricTriplets { n: 0, entries: Vec::new() })?
         } else {
             Cholesky::new(&SymmetricTriplets { n: n_u, entries: k_entries }).map_err(|e| match e {
-                Error::NotPositiveDefinite => Error::Internal {
-                    what: "VᵀLV is not positive definite although every unknown's component is constrained".into(),
-                },
+                Error::NotPositiveDefinite { pivot } => {
+                    let at = pivot.and_then(|u| unknown_vertex.get(u)).map_or(String::new(), |&v| {
+                        format!(" (first failing pivot at mesh vertex {v}, component {})", vertex_component[v as usize])
+                    });
+                    Error::Internal {
+                        what: format!(
+                            "VᵀLV is not positive definite although every unknown's component is constrained{at}"
+                        ),
+                    }
+                }
                 other => other,
             })?
         };
         let t4 = Instant::now();
+        cancel.check("the factorisation")?;
         let stats = BindStats {
             mesh_vertices: n_vertices,
             mesh_faces: surface.mesh.n_faces(),
@@ -549,6 +642,7 @@ impl Binding {
             .collect();
         let mut corner_r = vec![DVec3::ZERO; cut.n_halfedges()];
         for f in 0..cut.n_faces() as u32 {
+            cancel.check("assembly")?; // per face: a cut-face's Laplacian costs up to its corners cubed
             let hs = cut.face_halfedges(f);
             let n = hs.len();
             let lf = &face_laplacian
@@ -595,8 +689,10 @@ impl Binding {
             }
             knots.push(bound);
         }
+        let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {
             knots,
+            orientation_plans,
             layouts: curvenets.iter().map(|l| (*l).clone()).collect(),
             slot_sample,
             sample_projection,
@@ -734,4 +830,37 @@ fn curve_side(cut: &CutMesh, h: u32) -> Option<(u32, Side, u8)> {
         g = t;
     }
     None
+}
+
+impl Binding {
+    /// Heap bytes held by the binding: the surface, the cut-mesh, the
+    /// factor (with its symbolic analysis), the curvenet layouts and every
+    /// per-corner, per-sample and per-vertex array. Add `std::mem::size_of::<Binding>()`
+    /// for the struct itself when it is boxed or shared.
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::{bytes, nested_bytes};
+        self.surface.heap_bytes()
+            + self.cut.heap_bytes()
+            + bytes(&self.nets)
+            + bytes(&self.crossings)
+            + bytes(&self.corner)
+            + bytes(&self.unknown_vertex)
+            + bytes(&self.vertex_unknown)
+            + bytes(&self.face_laplacian)
+            + bytes(&self.face_laplacian_start)
+            + self.b.heap_bytes()
+            + self.factor.heap_bytes()
+            + bytes(&self.layouts)
+            + self.layouts.iter().map(|l| l.heap_bytes()).sum::<usize>()
+            + bytes(&self.slot_sample)
+            + bytes(&self.sample_projection)
+            + bytes(&self.sample_offset)
+            + bytes(&self.crossing_offset)
+            + bytes(&self.corner_r)
+            + bytes(&self.curve_vertices)
+            + bytes(&self.curve_vertex_start)
+            + bytes(&self.curve_vertex_rows)
+            + nested_bytes(&self.knots)
+            + bytes(&self.warnings)
+    }
 }

@@ -328,6 +328,26 @@ pub(crate) fn triangulate(poly: &[DVec2], out: &mut Vec<[u32; 3]>) -> Option<()>
     Some(())
 }
 
+impl Surface {
+    /// Heap bytes held by the surface: the mesh, its halfedges, points,
+    /// face planes, triangulation, vertex stars and the closest-point BVH.
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        self.mesh.heap_bytes()
+            + bytes(&self.input_face)
+            + bytes(&self.split_faces)
+            + self.halfedges.heap_bytes()
+            + bytes(&self.points)
+            + bytes(&self.planes)
+            + bytes(&self.corners_2d)
+            + bytes(&self.triangles)
+            + bytes(&self.face_tri_start)
+            + bytes(&self.vertex_out)
+            + bytes(&self.vertex_out_start)
+            + self.bvh.heap_bytes()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

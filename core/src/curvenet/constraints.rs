@@ -134,3 +134,10 @@ pub fn constraint_gradients(table: &ConstraintTable, gradients: &[[Mat3; 2]]) ->
     constraint_gradients_into(table, gradients, &mut out)?;
     Ok(out)
 }
+
+impl ConstraintTable {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        crate::heap::bytes(&self.slots) + crate::heap::bytes(&self.curve_offsets)
+    }
+}

@@ -52,8 +52,8 @@
 use glam::DVec3;
 
 use super::intersections::{IntersectionFan, T_JUNCTION_SIN};
-use super::layout::CurvenetLayout;
 use super::rotation::{orthonormalize, rotate_about, transport};
+use super::sampling::Sampling;
 use super::{Mat3, Side, v3};
 use crate::error::{Error, Result};
 
@@ -101,6 +101,18 @@ struct EndFrame {
     width: [f64; 2],
 }
 
+/// What the frames need of a curvenet's analysis: its sampling plan, its
+/// intersections and which fan slot each curve end occupies, and the length
+/// below which a segment has collapsed (`CurvenetLayout::frame_plan`).
+#[derive(Debug, Clone, Copy)]
+pub struct FramePlan<'a> {
+    pub sampling: &'a Sampling,
+    pub fans: &'a [IntersectionFan],
+    /// Per curve, `[start, end]`: `(fan, position in the fan)` at an intersection.
+    pub curve_ends: &'a [[Option<(u32, u32)>; 2]],
+    pub collapse_length: f64,
+}
+
 /// Computes the scaled frames of both sides of every segment of the curvenet
 /// sampled at `samples` (`#Q`, e.g. from `Sampling::samples_into`) into `out`
 /// (`#G` pairs indexed `[segment][side as usize]`). Allocation-free.
@@ -109,8 +121,8 @@ struct EndFrame {
 /// [`Error::SegmentCollapsed`] naming the spline and segment when a segment
 /// is (numerically) zero length, and [`Error::DegenerateIntersection`] when
 /// all curves at an intersection are collinear. Never returns NaN.
-pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &mut [[ScaledFrame; 2]]) -> Result<()> {
-    let sampling = layout.sampling();
+pub fn frames_into(plan: FramePlan<'_>, samples: &[[f64; 3]], out: &mut [[ScaledFrame; 2]]) -> Result<()> {
+    let sampling = plan.sampling;
     if samples.len() != sampling.n_samples() {
         return Err(Error::CountMismatch {
             what: "curvenet samples",
@@ -126,7 +138,7 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
         });
     }
     // Tangents and lengths.
-    let min_length = layout.collapse_length();
+    let min_length = plan.collapse_length;
     for (s, seg) in sampling.segments().iter().enumerate() {
         let [a, b] = seg.samples;
         let d = v3(samples[b as usize]) - v3(samples[a as usize]);
@@ -146,14 +158,14 @@ pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &m
     }
     // Normals and widths, curve by curve.
     for c in 0..sampling.n_curves() {
-        let [start, end] = layout.curve_end_slots(c);
+        let [start, end] = plan.curve_ends[c];
         if start.is_none() && end.is_none() {
             isolated_curve_frames(samples, sampling.curve_samples(c), sampling.curve_segments(c), out);
             continue;
         }
         let segs = sampling.curve_segments(c);
-        let start = start.map(|(f, k)| end_frame(layout.intersections(), f, k, true, out)).transpose()?;
-        let end = end.map(|(f, k)| end_frame(layout.intersections(), f, k, false, out)).transpose()?;
+        let start = start.map(|(f, k)| end_frame(plan.fans, f, k, true, out)).transpose()?;
+        let end = end.map(|(f, k)| end_frame(plan.fans, f, k, false, out)).transpose()?;
         match (start, end) {
             (Some(first), last) => {
                 // Transport forwards from the start.
@@ -254,10 +266,10 @@ fn isolated_curve_frames(
     }
 }
 
-/// Allocating form of [`scaled_frames_into`].
-pub fn scaled_frames(layout: &CurvenetLayout, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
-    let mut out = vec![[ScaledFrame::default(); 2]; layout.sampling().n_segments()];
-    scaled_frames_into(layout, samples, &mut out)?;
+/// Allocating form of [`frames_into`].
+pub fn frames(plan: FramePlan<'_>, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
+    let mut out = vec![[ScaledFrame::default(); 2]; plan.sampling.n_segments()];
+    frames_into(plan, samples, &mut out)?;
     Ok(out)
 }
 

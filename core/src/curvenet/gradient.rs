@@ -17,8 +17,8 @@
 
 use glam::DMat3;
 
-use super::frames::{ScaledFrame, scaled_frames};
-use super::layout::CurvenetLayout;
+use super::frames::ScaledFrame;
+use super::layout::{CurvenetLayout, scaled_frames};
 use super::rotation::{outer, smallest_rotation};
 use super::{Mat3, v3};
 use crate::error::{Error, Result};

@@ -35,7 +35,9 @@ pub const T_JUNCTION_SIN: f64 = 0.02;
 /// nearly opposite each other in the tangent plane (the cap side of a ring
 /// met by a single line), so their cross product is set by how the curves
 /// bend off the surface, not by the surface, and its direction (along the
-/// ring's axis) and orientation (decided by round-off) mean nothing.
+/// ring's axis) and orientation (decided by round-off) mean nothing. In a
+/// fan whose curves all leave steeply off the surface the bar is half the
+/// best corner's alignment instead, so the best aligned corner always counts.
 pub const CORNER_NORMAL_COS: f64 = 0.5;
 
 /// One curve end at an intersection.
@@ -170,13 +172,19 @@ pub(crate) fn intersection_fans(
             }
         }
         let emanations: Vec<Emanation> = keyed.into_iter().map(|(_, e)| e).collect();
-        let corner_signs = (0..v)
-            .map(|k| {
-                let c = direction(&emanations[k]).cross(direction(&emanations[(k + 1) % v]));
-                let along = c.dot(normal);
-                if c.length() < T_JUNCTION_SIN || along.abs() < CORNER_NORMAL_COS * c.length() {
+        // A corner whose vector lies far off the surface normal is a
+        // T-junction corner; "far" is relative to the fan's best aligned
+        // corner, so a fan drawn steeply off the surface keeps its best corner.
+        let corners: Vec<DVec3> =
+            (0..v).map(|k| direction(&emanations[k]).cross(direction(&emanations[(k + 1) % v]))).collect();
+        let alignment = |c: DVec3| if c.length() < T_JUNCTION_SIN { 0.0 } else { c.dot(normal).abs() / c.length() };
+        let best = corners.iter().map(|&c| alignment(c)).fold(0.0, f64::max);
+        let corner_signs = corners
+            .iter()
+            .map(|&c| {
+                if c.length() < T_JUNCTION_SIN || alignment(c) < CORNER_NORMAL_COS.min(CORNER_NORMAL_COS * best) {
                     0
-                } else if along >= 0.0 {
+                } else if c.dot(normal) >= 0.0 {
                     1
                 } else {
                     -1
@@ -196,4 +204,11 @@ pub(crate) fn intersection_fans(
         });
     }
     Ok((fans, ends))
+}
+
+impl IntersectionFan {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        crate::heap::bytes(&self.emanations) + crate::heap::bytes(&self.corner_signs)
+    }
 }

@@ -2,8 +2,8 @@
 //! computed once and immutable afterwards.
 
 use super::constraints::ConstraintTable;
-use super::frames::{ScaledFrame, scaled_frames};
-use super::intersections::{IntersectionFan, intersection_fans};
+use super::frames::{FramePlan, ScaledFrame, frames, frames_into};
+use super::intersections::{CurveEndSlots, IntersectionFan, intersection_fans};
 use super::sampling::{Sampling, SamplingOptions};
 use super::topology::Topology;
 use super::{Curvenet, v3};
@@ -24,7 +24,7 @@ pub struct CurvenetLayout {
     topology: Topology,
     sampling: Sampling,
     fans: Vec<IntersectionFan>,
-    curve_ends: Vec<[Option<(u32, u32)>; 2]>,
+    curve_ends: CurveEndSlots,
     curve_isolated: Vec<bool>,
     constraints: ConstraintTable,
     neutral_pool: Vec<[f64; 3]>,
@@ -77,7 +77,9 @@ impl CurvenetLayout {
         let (fans, curve_ends) = intersection_fans(&topology, &sampling, &neutral_samples, bvh)?;
         let curve_isolated = topology.curves().iter().map(|c| c.is_isolated()).collect();
         let constraints = ConstraintTable::new(&sampling, &topology);
-        let mut layout = Self {
+        let plan = FramePlan { sampling: &sampling, fans: &fans, curve_ends: &curve_ends, collapse_length };
+        let neutral_frames = frames(plan, &neutral_samples)?;
+        Ok(Self {
             topology,
             sampling,
             fans,
@@ -86,11 +88,19 @@ impl CurvenetLayout {
             constraints,
             neutral_pool: curvenet.points().to_vec(),
             neutral_samples,
-            neutral_frames: Vec::new(),
+            neutral_frames,
             collapse_length,
-        };
-        layout.neutral_frames = scaled_frames(&layout, &layout.neutral_samples)?;
-        Ok(layout)
+        })
+    }
+
+    /// What the scaled frames need of this analysis.
+    pub fn frame_plan(&self) -> FramePlan<'_> {
+        FramePlan {
+            sampling: &self.sampling,
+            fans: &self.fans,
+            curve_ends: &self.curve_ends,
+            collapse_length: self.collapse_length,
+        }
     }
 
     /// Intersections, anchors and curves.
@@ -153,5 +163,34 @@ impl CurvenetLayout {
     /// ([`COLLAPSE_TOLERANCE`] × the mean neutral segment length).
     pub fn collapse_length(&self) -> f64 {
         self.collapse_length
+    }
+}
+
+/// The scaled frames of both sides of every segment of `layout`'s curvenet
+/// sampled at `samples`, into `out` (see [`frames_into`](super::frames::frames_into)). Allocation-free.
+pub fn scaled_frames_into(layout: &CurvenetLayout, samples: &[[f64; 3]], out: &mut [[ScaledFrame; 2]]) -> Result<()> {
+    frames_into(layout.frame_plan(), samples, out)
+}
+
+/// Allocating form of [`scaled_frames_into`].
+pub fn scaled_frames(layout: &CurvenetLayout, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
+    frames(layout.frame_plan(), samples)
+}
+
+impl CurvenetLayout {
+    /// Heap bytes held: topology, sampling plan, fans, constraint slots and
+    /// the neutral pool, samples and frames (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        self.topology.heap_bytes()
+            + self.sampling.heap_bytes()
+            + bytes(&self.fans)
+            + self.fans.iter().map(|f| f.heap_bytes()).sum::<usize>()
+            + bytes(&self.curve_ends)
+            + bytes(&self.curve_isolated)
+            + self.constraints.heap_bytes()
+            + bytes(&self.neutral_pool)
+            + bytes(&self.neutral_samples)
+            + bytes(&self.neutral_frames)
     }
 }

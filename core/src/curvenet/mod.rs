@@ -46,10 +46,10 @@ mod sampling;
 mod topology;
 
 pub use constraints::{ConstraintSlot, ConstraintTable, constraint_gradients, constraint_gradients_into};
-pub use frames::{ScaledFrame, scaled_frames, scaled_frames_into};
+pub use frames::{FramePlan, ScaledFrame, frames, frames_into};
 pub use gradient::{deformation_gradients, deformation_gradients_into};
 pub use intersections::{COINCIDENT_ANGLE, CORNER_NORMAL_COS, Emanation, IntersectionFan, T_JUNCTION_SIN};
-pub use layout::{COLLAPSE_TOLERANCE, CurvenetLayout};
+pub use layout::{COLLAPSE_TOLERANCE, CurvenetLayout, scaled_frames, scaled_frames_into};
 pub use sampling::{
     DEFAULT_DENSITY, DEFAULT_MAX_SEGMENTS_PER_SPLINE, DEFAULT_MIN_REFINEMENT, DEFAULT_REFINEMENT_PER_SEGMENT, Sampling,
     SamplingOptions, Segment,

@@ -268,6 +268,11 @@ impl Sampling {
         })
     }
 
+    /// The splines, `#S` quadruples of control-point indices.
+    pub fn splines(&self) -> &[[u32; 4]] {
+        &self.splines
+    }
+
     /// Number of control points `#P` of the pool this plan samples.
     pub fn n_points(&self) -> usize {
         self.n_points
@@ -449,6 +454,23 @@ fn interior_parameters(p: &[DVec3; 4], n: u32, pieces: u32, mut emit: impl FnMut
     while k < n {
         emit(k as usize - 1, 1.0);
         k += 1;
+    }
+}
+
+impl Sampling {
+    /// Heap bytes held by the plan (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.splines)
+            + bytes(&self.spline_segments)
+            + bytes(&self.spline_refinement)
+            + bytes(&self.spline_interior)
+            + bytes(&self.knot_points)
+            + bytes(&self.point_knot)
+            + bytes(&self.curve_sample_offsets)
+            + bytes(&self.curve_samples)
+            + bytes(&self.curve_segment_offsets)
+            + bytes(&self.segments)
     }
 }
 

@@ -237,6 +237,19 @@ impl Topology {
     }
 }
 
+impl Topology {
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.valence)
+            + bytes(&self.curves)
+            + self.curves.iter().map(|c| bytes(&c.splines)).sum::<usize>()
+            + bytes(&self.intersections)
+            + bytes(&self.anchors)
+            + bytes(&self.spline_curve)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -10,6 +10,10 @@ pub enum UsdError {
     /// A prim or attribute breaks the contract.
     #[error("{prim}: {attribute}{sep}{problem}", sep = if attribute.is_empty() { "" } else { " " })]
     Contract { prim: String, attribute: String, problem: String },
+    /// The stage opens a layer or asset outside the directories it was
+    /// confined to ([`super::Stage::open_within`]).
+    #[error("cannot open {path}: it opens {asset} ({resolved}), outside the allowed directories ({roots})")]
+    Forbidden { path: String, asset: String, resolved: String, roots: String },
 }
 
 impl UsdError {

@@ -14,6 +14,9 @@
 //! # Ok::<(), curvenet_schema::usd::UsdError>(())
 //! ```
 
+mod adjust;
+mod confine;
+mod curvenet_layer;
 mod error;
 mod read;
 mod skel;
@@ -24,6 +27,8 @@ pub use write::{
     encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
+pub use adjust::ADJUSTMENT_TYPE;
+pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;
 pub use read::Stage;
 pub use skel::{

@@ -32,16 +32,58 @@ impl Stage {
     /// sublayers, references or payloads are errors: a bake that silently
     /// dropped a rest-pose sublayer would write a wrong mesh.
     pub fn open(path: impl AsRef<std::path::Path>) -> Result<Self> {
-        let path = path.as_ref().to_string_lossy().into_owned();
+        Self::open_with(path.as_ref(), None)
+    }
+
+    /// Like [`Self::open`], but every layer and asset the stage opens (its
+    /// root layer, sublayers, references, payloads, at any depth) must
+    /// resolve, symlinks followed, inside one of `roots` (canonical
+    /// directories); the first one outside is refused with
+    /// [`UsdError::Forbidden`], before it is read.
+    pub fn open_within(path: impl AsRef<std::path::Path>, roots: &[std::path::PathBuf]) -> Result<Self> {
+        Self::open_with(path.as_ref(), Some(roots))
+    }
+
+    fn open_with(path: &std::path::Path, roots: Option<&[std::path::PathBuf]>) -> Result<Self> {
+        let path = path.to_string_lossy().into_owned();
         let open_err = |message: String| UsdError::Open { path: path.clone(), message };
         if !std::path::Path::new(&path).is_file() {
             return Err(open_err("no such file".into()));
         }
-        let stage = usd::Stage::open(&path).map_err(|e| open_err(e.to_string()))?;
+        let refused = std::sync::Arc::new(std::sync::Mutex::new(None));
+        let opened = match roots {
+            None => usd::Stage::open(&path),
+            Some(roots) => usd::Stage::builder()
+                .resolver(super::confine::Confined::new(roots.to_vec(), refused.clone()))
+                .open(&path),
+        };
+        let forbidden = || {
+            refused.lock().unwrap_or_else(|e| e.into_inner()).take().map(|(asset, resolved): (String, String)| {
+                UsdError::Forbidden {
+                    path: path.clone(),
+                    asset,
+                    resolved,
+                    roots: roots
+                        .unwrap_or_default()
+                        .iter()
+                        .map(|r| r.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                }
+            })
+        };
+        let stage = match opened {
+            Ok(stage) => stage,
+            Err(e) => return Err(forbidden().unwrap_or_else(|| open_err(e.to_string()))),
+        };
         let stage = Self { stage, path: path.clone() };
         // Composition diagnostics accrue as prims are composed: compose every
         // prim once, then refuse the stage if anything failed to resolve.
-        stage.all_prims()?;
+        let composed = stage.all_prims();
+        if let Some(e) = forbidden() {
+            return Err(e);
+        }
+        composed?;
         if let Some(diag) = stage.stage.composition_errors().first() {
             return Err(UsdError::Open { path, message: diag.to_string() });
         }
@@ -92,6 +134,24 @@ impl Stage {
             }
         }
         Ok(out)
+    }
+
+    /// The path of every `Mesh` prim on the stage, deformed or not, in
+    /// traversal order.
+    pub fn mesh_paths(&self) -> Result<Vec<String>> {
+        let mut out = Vec::new();
+        for path in self.all_prims()? {
+            let prim = self.prim(path.as_str())?;
+            if self.type_name(&prim)? == "Mesh" {
+                out.push(path.as_str().to_string());
+            }
+        }
+        Ok(out)
+    }
+
+    /// Whether the composed stage has a prim at `path`.
+    pub fn has_prim(&self, path: &str) -> bool {
+        self.prim(path).is_ok()
     }
 
     /// Every curvenet prim on the stage (`BasisCurves` with `primvars:curvenet:cv`).
@@ -203,7 +263,13 @@ impl Stage {
         }
         let projection_points = match self.static_value(&prim, PROJECTION)? {
             Some(v) => {
-                let p = self.points_value(&prim, PROJECTION, &v)?;
+                let mut p = self.points_value(&prim, PROJECTION, &v)?;
+                // An indexed primvar is flattened: entry i is values[indices[i]].
+                let indices_name = format!("{PROJECTION}:indices");
+                if let Some(ix) = self.static_value(&prim, &indices_name)? {
+                    let ix = self.index_array(&prim, &indices_name, &ix, p.len())?;
+                    p = ix.iter().map(|&i| p[i as usize]).collect();
+                }
                 if p.len() != n {
                     return Err(UsdError::contract(
                         path,

@@ -64,3 +64,41 @@ pub(crate) fn kind(value: &Value) -> String {
     let s = format!("{value:?}");
     s.split(['(', ' ', '{']).next().unwrap_or("value").to_string()
 }
+
+/// A 3-vector (`float3`, `double3`, `half3` and their roles).
+pub(crate) fn vec3(value: &Value) -> Option<[f64; 3]> {
+    Some(match value {
+        Value::Vec3f(v) => [v.x as f64, v.y as f64, v.z as f64],
+        Value::Vec3d(v) => [v.x, v.y, v.z],
+        Value::Vec3h(v) => [v.x.to_f64(), v.y.to_f64(), v.z.to_f64()],
+        _ => return None,
+    })
+}
+
+/// A quaternion as `[w, x, y, z]` (`quatf`, `quatd`, `quath`).
+pub(crate) fn quat(value: &Value) -> Option<[f64; 4]> {
+    Some(match value {
+        Value::Quatf(q) => [q.w as f64, q.x as f64, q.y as f64, q.z as f64],
+        Value::Quatd(q) => [q.w, q.x, q.y, q.z],
+        Value::Quath(q) => [q.w.to_f64(), q.x.to_f64(), q.y.to_f64(), q.z.to_f64()],
+        _ => return None,
+    })
+}
+
+/// An integer (`int`, `uint`, `int64`, `uint64`) as `i64`.
+pub(crate) fn int(value: &Value) -> Option<i64> {
+    Some(match value {
+        Value::Int(i) => *i as i64,
+        Value::Uint(i) => *i as i64,
+        Value::Int64(i) => *i,
+        Value::Uint64(i) => (*i).min(i64::MAX as u64) as i64,
+        _ => return None,
+    })
+}
+
+pub(crate) fn bool(value: &Value) -> Option<bool> {
+    match value {
+        Value::Bool(b) => Some(*b),
+        _ => None,
+    }
+}

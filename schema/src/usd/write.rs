@@ -17,7 +17,9 @@
 //! The file is written whole or not at all: the layer is serialised into a
 //! temporary file beside the output, synced to disk and renamed over it; on
 //! any failure the temporary file is removed and the output is untouched.
-//! The same input writes the same bytes.
+//! The same input writes the same bytes. A writer killed mid-write leaves
+//! its temporary file; the next write of the same output removes it (see
+//! [`remove_stale_temporaries`]).
 
 use std::fs::File;
 use std::io::{BufWriter, Write as _};
@@ -57,7 +59,7 @@ impl LayerFormat {
         }
     }
 
-    fn id(self) -> &'static str {
+    pub(super) fn id(self) -> &'static str {
         match self {
             Self::Usda => "usda",
             Self::Usdc => "usdc",
@@ -145,7 +147,11 @@ pub fn encode_points_overrides(
 }
 
 /// Serialises `data` in `format` into `sink`.
-fn encode_layer(data: &sdf::Data, format: LayerFormat, sink: &mut dyn sdf::WriteSeek) -> Result<(), WriteError> {
+pub(super) fn encode_layer(
+    data: &sdf::Data,
+    format: LayerFormat,
+    sink: &mut dyn sdf::WriteSeek,
+) -> Result<(), WriteError> {
     let encoder = sdf::LayerRegistry::find_by_id(format.id())
         .ok_or(WriteError::Encode { format: format.id(), message: "the format is not registered".into() })?;
     encoder.write(data, sink).map_err(|e| match e {
@@ -171,7 +177,7 @@ pub fn write_points_overrides(
 
 /// Runs `write` on a fresh temporary file beside `path`, syncs it and renames
 /// it over `path`; on any failure removes the temporary file.
-fn write_atomically(
+pub(super) fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<File>) -> Result<(), WriteError>,
 ) -> Result<(), WriteError> {
@@ -179,6 +185,7 @@ fn write_atomically(
         let p = p.display().to_string();
         move |source| WriteError::Io { what, path: p, source }
     };
+    remove_stale_temporaries(path);
     let temp = temp_path(path);
     let file = File::options().write(true).create_new(true).open(&temp).map_err(io("cannot create", &temp))?;
     let guard = RemoveOnDrop(Some(temp.clone()));
@@ -209,20 +216,85 @@ fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-/// `DIR/.NAME.tmp-PID-N-RANDOM`: unique per process (counter) and across
-/// processes, also on different hosts writing to shared storage (pid and 64
-/// random bits from the OS-seeded `RandomState`), hidden (so a farm's glob of
-/// finished chunks skips it), and in the output's directory so the rename
-/// stays on one file system. Created with `create_new`, so a clash fails
-/// (as I/O, worth retrying) instead of sharing a file.
+/// `DIR/.NAME.tmp-HOST-PID-N-RANDOM`: unique per process (counter) and
+/// across processes, also on different hosts writing to shared storage (the
+/// host name, the pid and 64 random bits from the OS-seeded `RandomState`),
+/// hidden (so a farm's glob of finished chunks skips it), and in the
+/// output's directory so the rename stays on one file system. Created with
+/// `create_new`, so a clash fails (as I/O, worth retrying) instead of
+/// sharing a file.
 fn temp_path(path: &Path) -> PathBuf {
     use std::hash::{BuildHasher as _, Hasher as _};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     let mut random = std::hash::RandomState::new().build_hasher();
     random.write_u64(n);
+    parent_dir(path).join(format!(
+        "{}{}-{}-{n}-{:016x}",
+        temp_prefix(path),
+        host_name(),
+        std::process::id(),
+        random.finish()
+    ))
+}
+
+/// `.NAME.tmp-`: what every temporary file of output `path` starts with.
+fn temp_prefix(path: &Path) -> String {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "layer".into());
-    parent_dir(path).join(format!(".{name}.tmp-{}-{n}-{:016x}", std::process::id(), random.finish()))
+    format!(".{name}.tmp-")
+}
+
+/// This host's name, made safe for a file name (letters, digits, `.`, `_`; at most 64 bytes).
+fn host_name() -> String {
+    let raw = std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+        .unwrap_or_default();
+    let name: String = raw
+        .trim()
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || c == '.' || c == '_' { c } else { '_' })
+        .take(64)
+        .collect();
+    if name.is_empty() { "host".into() } else { name }
+}
+
+/// A temporary file untouched this long is stale whoever wrote it (a write
+/// takes seconds; this also covers writers on other hosts of shared storage).
+pub const STALE_TEMPORARY_AGE: std::time::Duration = std::time::Duration::from_secs(3600);
+
+/// Removes the temporary files a killed writer of `path` left beside it:
+/// those written on this host by a process that no longer exists (checked
+/// in `/proc`), and any not modified for [`STALE_TEMPORARY_AGE`]. A live
+/// writer's file — this host's, or another host's recent one — is kept.
+/// Best effort: failures are ignored (the write itself reports what matters).
+pub fn remove_stale_temporaries(path: &Path) {
+    let prefix = temp_prefix(path);
+    let Ok(entries) = std::fs::read_dir(parent_dir(path)) else { return };
+    let host = host_name();
+    let proc_fs = Path::new("/proc/self").exists();
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let Some(rest) = file_name.to_str().and_then(|n| n.strip_prefix(&prefix)) else { continue };
+        // HOST-PID-N-RANDOM, the host possibly holding '-' in files of old versions: parse from the right.
+        let parts: Vec<&str> = rest.rsplitn(4, '-').collect();
+        let dead_here = match parts.as_slice() {
+            [_, _, pid, writer] => {
+                proc_fs
+                    && *writer == host
+                    && pid
+                        .parse::<u32>()
+                        .is_ok_and(|p| p != std::process::id() && !Path::new(&format!("/proc/{p}")).exists())
+            }
+            _ => false,
+        };
+        let old = entry
+            .metadata()
+            .and_then(|m| m.modified())
+            .is_ok_and(|t| t.elapsed().is_ok_and(|age| age > STALE_TEMPORARY_AGE));
+        if dead_here || old {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 struct RemoveOnDrop(Option<PathBuf>);
@@ -344,11 +416,11 @@ fn points_overrides_from_data(name: &str, data: &dyn sdf::AbstractData) -> Resul
             Some(sdf::SpecType::Prim) => {
                 only_fields(&spec, &[sdf::FieldKey::Specifier.as_str(), children_key, properties_key])?;
                 match field(&spec, sdf::FieldKey::Specifier.as_str())? {
-                    Some(Value::Specifier(sdf::Specifier::Over)) => {}
+                    // Absent is Sdf's fallback, `over`: usd-core's crate writer omits it.
+                    Some(Value::Specifier(sdf::Specifier::Over)) | None => {}
                     Some(v) => {
                         return Err(not_a_bake(&spec, format!("specifier {v:?}: a bake holds over opinions only")));
                     }
-                    None => return Err(not_a_bake(&spec, "no specifier: a bake holds over opinions only".into())),
                 }
             }
             Some(sdf::SpecType::Attribute) if spec.split_property().is_some_and(|(_, name)| name == POINTS) => {
@@ -560,6 +632,38 @@ mod tests {
         .unwrap_err();
         assert!(!e.is_io());
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_write_removes_the_stale_temporaries_of_its_output_only() {
+        let dir = temp_dir("stale");
+        let host = host_name();
+        // A pid that no longer exists: a child that has exited and been reaped.
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let dead = child.id();
+        child.wait().unwrap();
+        let touch = |name: &str, age_s: u64| {
+            let f = File::create(dir.join(name)).unwrap();
+            f.set_modified(std::time::SystemTime::now() - std::time::Duration::from_secs(age_s)).unwrap();
+        };
+        let dead_here = format!(".out.usda.tmp-{host}-{dead}-0-00000000000000aa");
+        let live_here = format!(".out.usda.tmp-{host}-{}-7-00000000000000bb", std::process::id());
+        let other_host_recent = format!(".out.usda.tmp-{host}x-{dead}-0-00000000000000cc");
+        let other_host_old = format!(".out.usda.tmp-{host}x-{dead}-1-00000000000000dd");
+        let other_output = format!(".other.usda.tmp-{host}-{dead}-0-00000000000000ee");
+        touch(&dead_here, 0);
+        touch(&live_here, 0);
+        touch(&other_host_recent, 60);
+        touch(&other_host_old, 2 * 3600);
+        touch(&other_output, 0);
+        write_points_overrides(&dir.join("out.usda"), prims(), (1.0, 2.0), "").unwrap();
+        let mut left: Vec<String> =
+            std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        left.sort();
+        let mut want = vec![live_here, other_host_recent, other_output, "out.usda".to_string()];
+        want.sort();
+        assert_eq!(left, want);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -18,9 +18,12 @@
 //!    unless `curvenet:blendShapeOrder = "afterSolve"`) → the rest pose;
 //!    spline skinning → the posed pools of the skinned curvenets (the
 //!    others: their own samples, else knot tracking over the rest pose) →
-//!    the solve → blend shapes after the deformation, mapped by each
-//!    vertex's interpolated deformation gradient (paper §5), for meshes
-//!    without a skin or asking for `afterSolve`.
+//!    each curvenet's `CurvenetAdjustment` children (Elemental's Curvenet
+//!    Adjustments, read per frame) on top of the posed pool or knot
+//!    tracking, in the knots' surface-relative frames → the solve → blend
+//!    shapes after the deformation, mapped by each vertex's interpolated
+//!    deformation gradient (paper §5), for meshes without a skin or asking
+//!    for `afterSolve`.
 //! 3. The points (f32) are written as `over` opinions, atomically: a
 //!    temporary file beside OUTPUT, synced, renamed over it. A failed bake
 //!    leaves neither OUTPUT nor a temporary file.
@@ -33,9 +36,9 @@ use std::time::{Duration, Instant};
 
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_core::skinning::Mat4;
-use curvenet_core::{Binding, FrameInput, Workspace};
+use curvenet_core::{Adjustment, Binding, FrameInput, Workspace};
 use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
-use curvenet_schema::{CurvenetData, MeshData};
+use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use rayon::prelude::*;
 
 use super::rig::MeshRig;
@@ -54,6 +57,10 @@ time samples of every deformed mesh at its composed path (and over its
 ancestors), plus startTimeCode/endTimeCode of the baked frames. Sublayer it
 above (stronger than) INPUT. The file is replaced atomically: a failed bake
 leaves OUTPUT as it was and no temporary file. The same bake writes the same bytes.
+
+Curvenet Adjustments: the `CurvenetAdjustment` children of each curvenet
+(schema/README.md) are evaluated at every frame and move their knots, in the
+knots' surface-relative frames, on top of the posed or tracked curvenet.
 
 Frames: A-B is every integer time code from A to B inclusive (A alone: one
 frame). Without --frames: the stage's startTimeCode..endTimeCode, else the
@@ -92,6 +99,11 @@ pub struct Args {
     /// summary reports the iterations done.
     #[arg(long, value_name = "N", default_value_t = 0)]
     pub g1_flexible: usize,
+    /// Refuse (exit 2) a stage that opens any layer or asset (sublayers,
+    /// references, payloads, at any depth) outside these directories, symlinks
+    /// followed (repeatable). The service bakes with its --bake-root dirs.
+    #[arg(long = "confine", value_name = "DIR")]
+    pub confine: Vec<PathBuf>,
 }
 
 /// An inclusive range of integer time codes.
@@ -142,6 +154,8 @@ struct MeshJob {
     rig: Option<MeshRig>,
     /// A skinned mesh's bind pose when its `points` have no time samples.
     bind_points: Option<Vec<[f64; 3]>>,
+    /// The `CurvenetAdjustment` prims of each curvenet (binding order).
+    adjustments: Vec<Vec<AdjustmentData>>,
 }
 
 /// One mesh's input at one frame.
@@ -154,6 +168,8 @@ struct MeshFrame {
     transforms: Option<Vec<Mat4>>,
     /// Blend-shape weights (empty when the mesh has no blend shapes).
     weights: Vec<f64>,
+    /// The curvenets' adjustments at this frame (empty when there are none).
+    adjustments: Vec<Adjustment>,
 }
 
 /// One frame's inputs, one entry per mesh job.
@@ -174,9 +190,22 @@ pub fn run(args: &Args) -> CliResult {
         |e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))),
     )?;
 
-    let stage = Stage::open(&args.input)?;
+    let stage = if args.confine.is_empty() {
+        Stage::open(&args.input)?
+    } else {
+        let roots = args
+            .confine
+            .iter()
+            .map(|r| std::fs::canonicalize(r).map_err(|e| CliError::Input(format!("--confine {}: {e}", r.display()))))
+            .collect::<CliResult<Vec<_>>>()?;
+        Stage::open_within(&args.input, &roots)?
+    };
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs)?;
+    let adjustments = inputs
+        .iter()
+        .map(|(_, nets, _)| nets.iter().map(|n| stage.curvenet_adjustments(n)).collect::<Result<Vec<_>, _>>())
+        .collect::<Result<Vec<_>, _>>()?;
 
     let t_bind = Instant::now();
     // The rigs (and what else only the stage's thread can read), then the bindings in parallel.
@@ -212,7 +241,8 @@ pub fn run(args: &Args) -> CliResult {
     let jobs: Vec<MeshJob> = pool.install(|| {
         inputs
             .into_par_iter()
-            .map(|(m, n, r, rig, order, bind_points)| bind(m, n, r, rig, order, bind_points))
+            .zip(adjustments)
+            .map(|((m, n, r, rig, order, bind_points), a)| bind(m, n, r, rig, order, bind_points, a))
             .collect::<CliResult<_>>()
     })?;
     let bind_ms = ms(t_bind.elapsed());
@@ -358,9 +388,10 @@ fn bind(
     rig: Option<MeshRig>,
     order: BlendShapeOrder,
     bind_points: Option<Vec<[f64; 3]>>,
+    adjustments: Vec<Vec<AdjustmentData>>,
 ) -> CliResult<MeshJob> {
     let n = mesh.projection_points.len();
-    let binding = super::bind_mesh(&mesh, &nets)?;
+    let (binding, _analysis_ms) = super::bind_mesh(&mesh, &nets)?;
     let shapes = mesh
         .blend_shapes
         .iter()
@@ -376,7 +407,7 @@ fn bind(
         Some(_) => !mesh.rest_sample_times.is_empty(),
         None => reads_rest,
     };
-    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes, order, rig, bind_points })
+    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes, order, rig, bind_points, adjustments })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame
@@ -416,7 +447,8 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                         })?),
                         None => None,
                     };
-                    Ok(MeshFrame { posed, rest, transforms, weights })
+                    let adjustments = stage.adjustments_at(&job.adjustments, Some(t)).map_err(at)?;
+                    Ok(MeshFrame { posed, rest, transforms, weights, adjustments })
                 })
                 .collect::<CliResult<Vec<_>>>()?;
             Ok(FrameData { time: t, meshes })
@@ -504,7 +536,7 @@ fn solve(
         input.posed.iter().zip(&skinned).map(|(p, s)| s.as_deref().or(p.as_deref())).collect();
     let n = job.binding.n_vertices();
     let mut out = vec![[0.0; 3]; n];
-    let frame = FrameInput { posed: &posed, rest: rest_ref };
+    let frame = FrameInput { posed: &posed, rest: rest_ref, adjustments: &input.adjustments };
     // Gradients only when a blend shape is on after the solve at this frame.
     let mut gradients = (shapes_on && !before).then(|| vec![[0.0; 9]; n]);
     job.binding

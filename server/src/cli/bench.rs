@@ -316,7 +316,9 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
     let frame_err = |i: usize| move |source| CliError::Core { context: format!("{ctx}, bench frame {i}"), source };
     let mut ws = binding.workspace();
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
-    binding.deform(&FrameInput { posed: &inputs[0], rest: None }, &mut ws, &mut out, None).map_err(frame_err(0))?;
+    binding
+        .deform(&FrameInput { posed: &inputs[0], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .map_err(frame_err(0))?;
     let neutral_max_error = max_distance(&out, points) / diagonal;
     let mut eval = CurvenetEval::new(&layouts);
     let mut tri9 = TriSolve::<9>::new(binding.n_unknowns(), 9);
@@ -331,7 +333,9 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
     let mut max_displacement = 0.0f64;
     for (i, (input, pose)) in inputs.iter().zip(&pools).enumerate() {
         let clock = Stopwatch::start();
-        binding.deform(&FrameInput { posed: input, rest: None }, &mut ws, &mut out, None).map_err(frame_err(i))?;
+        binding
+            .deform(&FrameInput { posed: input, rest: None, ..Default::default() }, &mut ws, &mut out, None)
+            .map_err(frame_err(i))?;
         deform_t.push(clock.stop());
         eval_t.push(eval.time(&layouts, pose).map_err(frame_err(i))?);
         tri9_t.push(tri9.time(&binding));
@@ -548,7 +552,12 @@ fn throughput(binding: &Binding, inputs: &[Vec<Option<&[[f64; 3]]>>], jobs: usiz
             let slot = rayon::current_thread_index().unwrap_or(0);
             let mut guard = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
             let (ws, out) = &mut *guard;
-            binding.deform(&FrameInput { posed: &inputs[k % inputs.len()], rest: None }, ws, out, None)
+            binding.deform(
+                &FrameInput { posed: &inputs[k % inputs.len()], rest: None, ..Default::default() },
+                ws,
+                out,
+                None,
+            )
         })
     })
     .map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;

@@ -7,7 +7,9 @@
 //! report lists the intersections, anchors and curves with their sampling, and
 //! warns about what is likely a mistake (curves shorter than a mesh edge,
 //! curves with a single segment, unused control points, samples far from the
-//! surface, non-finite posed pools). A curvenet whose analysis fails is
+//! surface, non-finite posed pools). Each curvenet's Curvenet Adjustments
+//! (`CurvenetAdjustment` children) are listed with their knot, tangents,
+//! animated attributes and values at `--time`. A curvenet whose analysis fails is
 //! reported with its error (naming the prim) and the others are still
 //! reported; the command then exits with status 2.
 
@@ -17,6 +19,7 @@ use std::fmt::Write as _;
 use curvenet_core::curvenet::CurveEnd;
 use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
+use curvenet_schema::wire::{BindingStats, BindingTimings};
 use curvenet_schema::{CurvenetData, MeshData};
 use serde::Serialize;
 
@@ -143,47 +146,12 @@ struct SkinDistanceReport {
 #[derive(Serialize)]
 struct BindingReport {
     /// `None` when the binding failed (then `error` says why).
-    stats: Option<BindStatsReport>,
-    timings_ms: Option<BindTimingsReport>,
-    /// Wall time of the whole binding (analysis and sampling included).
-    total_ms: f64,
+    /// The same counts and times, by the same names, as the service's
+    /// binding response (`schema::wire`).
+    stats: Option<BindingStats>,
+    timings: Option<BindingTimings>,
     warnings: Vec<String>,
     error: Option<String>,
-}
-
-#[derive(Serialize)]
-struct BindStatsReport {
-    samples: usize,
-    segments: usize,
-    cut_vertices: usize,
-    cut_faces: usize,
-    cut_halfedges: usize,
-    cracks: usize,
-    islands_removed: usize,
-    /// How the segments were embedded: chords inside one face, straightest
-    /// paths, fallback paths (shortest in a strip of faces), left out
-    /// (samples on two components); and detours (warnings).
-    embedded: EmbeddedReport,
-    unknowns: usize,
-    constraints: usize,
-    factor_nonzeros: usize,
-}
-
-#[derive(Serialize)]
-struct EmbeddedReport {
-    chord: usize,
-    straightest: usize,
-    fallback: usize,
-    left_out: usize,
-    detours: usize,
-}
-
-#[derive(Serialize)]
-struct BindTimingsReport {
-    surface: f64,
-    cutting: f64,
-    assembly: f64,
-    factor: f64,
 }
 
 #[derive(Serialize, Default)]
@@ -218,6 +186,37 @@ struct CurvenetReport {
     error: Option<AnalysisError>,
     /// The warnings about this curvenet (also in the report's `warnings`).
     warnings: Vec<String>,
+    /// Its `CurvenetAdjustment` prims, in the stage's child order.
+    adjustments: Vec<AdjustmentReport>,
+}
+
+/// A `CurvenetAdjustment` prim (schema/README.md).
+#[derive(Serialize)]
+struct AdjustmentReport {
+    path: String,
+    /// The knot's pool index.
+    knot: u32,
+    /// `intersection`, `anchor` or `pass-through` (a valence-2 knot).
+    knot_kind: &'static str,
+    valence: usize,
+    attach_tangents: bool,
+    /// The knot's tangent control points (the order of `curvenet:tangentTranslates`).
+    tangents: Vec<u32>,
+    /// The authored attributes and how many time samples each has (0: static).
+    attributes: BTreeMap<String, usize>,
+    /// The values at `--time` (the default values without it): translate,
+    /// rotate (`euler_xyz_degrees` or `quaternion_wxyz`), scale, tangent translates.
+    values: AdjustmentValues,
+}
+
+#[derive(Serialize)]
+struct AdjustmentValues {
+    time: Option<f64>,
+    translate: [f64; 3],
+    euler_xyz_degrees: Option<[f64; 3]>,
+    quaternion_wxyz: Option<[f64; 4]>,
+    scale: [f64; 3],
+    tangent_translates: Vec<[f64; 3]>,
 }
 
 #[derive(Serialize)]
@@ -595,42 +594,13 @@ fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
     let bound = super::bind_mesh(m, &nets);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
-        Ok(b) => {
-            let (st, t) = (b.stats(), b.timings());
-            BindingReport {
-                stats: Some(BindStatsReport {
-                    samples: st.samples,
-                    segments: st.segments,
-                    cut_vertices: st.cut_vertices,
-                    cut_faces: st.cut_faces,
-                    cut_halfedges: st.cut_halfedges,
-                    cracks: st.cracks,
-                    islands_removed: st.islands_removed,
-                    embedded: EmbeddedReport {
-                        chord: st.embedding.chord,
-                        straightest: st.embedding.straightest,
-                        fallback: st.embedding.fallback,
-                        left_out: st.embedding.disconnected,
-                        detours: st.detours,
-                    },
-                    unknowns: st.unknowns,
-                    constraints: st.constraints,
-                    factor_nonzeros: st.factor_nonzeros,
-                }),
-                timings_ms: Some(BindTimingsReport {
-                    surface: t.surface_ms,
-                    cutting: t.cutting_ms,
-                    assembly: t.assembly_ms,
-                    factor: t.factor_ms,
-                }),
-                total_ms,
-                warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
-                error: None,
-            }
-        }
-        Err(e) => {
-            BindingReport { stats: None, timings_ms: None, total_ms, warnings: Vec::new(), error: Some(e.to_string()) }
-        }
+        Ok((b, analysis_ms)) => BindingReport {
+            stats: Some(BindingStats::from(&b.stats())),
+            timings: Some(BindingTimings::new(analysis_ms, &b.timings(), total_ms)),
+            warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
+            error: None,
+        },
+        Err(e) => BindingReport { stats: None, timings: None, warnings: Vec::new(), error: Some(e.to_string()) },
     })
 }
 
@@ -747,7 +717,46 @@ fn curvenet_report(
         analysis,
         error,
         warnings,
+        adjustments: adjustment_reports(stage, c, time)?,
     })
+}
+
+/// The curvenet's adjustments with their values at `time`.
+fn adjustment_reports(stage: &Stage, c: &CurvenetData, time: Option<f64>) -> CliResult<Vec<AdjustmentReport>> {
+    let list = stage.curvenet_adjustments(c)?;
+    let values = stage.adjustments_at(std::slice::from_ref(&list), time)?;
+    Ok(list
+        .into_iter()
+        .zip(values)
+        .map(|(a, v)| {
+            let valence = c.splines.iter().map(|s| (s[0] == a.knot) as usize + (s[3] == a.knot) as usize).sum();
+            let (euler_xyz_degrees, quaternion_wxyz) = match v.rotate {
+                curvenet_core::Rotate::EulerXyz(e) => (Some(e), None),
+                curvenet_core::Rotate::Quaternion(q) => (None, Some(q)),
+            };
+            AdjustmentReport {
+                knot_kind: match valence {
+                    1 => "anchor",
+                    2 => "pass-through",
+                    _ => "intersection",
+                },
+                path: a.path,
+                knot: a.knot,
+                valence,
+                attach_tangents: a.attach_tangents,
+                tangents: a.tangents,
+                attributes: a.attributes.into_iter().map(|(name, times)| (name, times.len())).collect(),
+                values: AdjustmentValues {
+                    time,
+                    translate: v.translate,
+                    euler_xyz_degrees,
+                    quaternion_wxyz,
+                    scale: v.scale,
+                    tangent_translates: v.tangent_translates,
+                },
+            }
+        })
+        .collect())
 }
 
 fn unused_control_points(c: &CurvenetData) -> Vec<u32> {
@@ -952,6 +961,9 @@ fn text(r: &Report) -> String {
         if let Some(a) = &c.analysis {
             analysis_text(&mut s, a);
         }
+        for a in &c.adjustments {
+            adjustment_text(&mut s, a);
+        }
     }
     for w in &r.warnings {
         let _ = writeln!(s, "warning: {w}");
@@ -959,11 +971,50 @@ fn text(r: &Report) -> String {
     s
 }
 
+fn adjustment_text(s: &mut String, a: &AdjustmentReport) {
+    let attributes: Vec<String> = a
+        .attributes
+        .iter()
+        .map(|(name, n)| match n {
+            0 => format!("{name} (static)"),
+            n => format!("{name} ({n} time sample{})", plural(*n)),
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "  adjustment {}: knot {} ({}, valence {}), tangents {} ({}): {}",
+        a.path,
+        a.knot,
+        a.knot_kind,
+        a.valence,
+        if a.attach_tangents { "attached" } else { "free" },
+        list(&a.tangents),
+        if attributes.is_empty() { "nothing authored".to_string() } else { attributes.join(", ") }
+    );
+    let v = &a.values;
+    let rotate = match (v.euler_xyz_degrees, v.quaternion_wxyz) {
+        (_, Some(q)) => format!("orient (w, x, y, z) {q:?}"),
+        (Some(e), None) => format!("rotateXYZ {e:?} degrees"),
+        (None, None) => "no rotate".to_string(),
+    };
+    let _ = writeln!(
+        s,
+        "    {}: translate {:?}, {rotate}, scale {:?}, tangent translates {:?}",
+        match v.time {
+            Some(t) => format!("at time {t}"),
+            None => "default values".to_string(),
+        },
+        v.translate,
+        v.scale,
+        v.tangent_translates
+    );
+}
+
 fn binding_text(s: &mut String, b: &BindingReport) {
     if let Some(e) = &b.error {
-        let _ = writeln!(s, "  binding failed after {:.1} ms: {e}", b.total_ms);
+        let _ = writeln!(s, "  binding failed: {e}");
     }
-    if let (Some(st), Some(t)) = (&b.stats, &b.timings_ms) {
+    if let (Some(st), Some(t)) = (&b.stats, &b.timings) {
         let _ = writeln!(
             s,
             "  binding: {} samples, {} segments -> {} cut-vertices, {} cut-faces, {} cut-halfedges, {} crack{}, {} island{} removed",
@@ -977,16 +1028,15 @@ fn binding_text(s: &mut String, b: &BindingReport) {
             st.islands_removed,
             plural(st.islands_removed)
         );
-        let e = &st.embedded;
         let _ = writeln!(
             s,
             "  segments embedded: {} inside one face, {} by straightest path, {} by fallback path, {} left out; {} detour{}",
-            e.chord,
-            e.straightest,
-            e.fallback,
-            e.left_out,
-            e.detours,
-            plural(e.detours)
+            st.chord_paths,
+            st.straightest_paths,
+            st.fallback_paths,
+            st.segments_left_out,
+            st.detours,
+            plural(st.detours)
         );
         let _ = writeln!(
             s,
@@ -995,8 +1045,8 @@ fn binding_text(s: &mut String, b: &BindingReport) {
         );
         let _ = writeln!(
             s,
-            "  binding time: {:.1} ms (surface {:.1}, cutting {:.1}, assembly {:.1}, factor {:.1}; the rest is analysis and sampling)",
-            b.total_ms, t.surface, t.cutting, t.assembly, t.factor
+            "  binding time: {:.1} ms (analysis {:.1}, surface {:.1}, cutting {:.1}, assembly {:.1}, factor {:.1})",
+            t.total_ms, t.analysis_ms, t.surface_ms, t.cutting_ms, t.assembly_ms, t.factor_ms
         );
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod bench;
+pub mod draft;
 pub mod inspect;
 pub mod rig;
 pub mod serve;
@@ -22,6 +23,9 @@ pub enum CliError {
     /// An I/O failure (writing output): worth retrying.
     #[error("{context}: {source}")]
     Io { context: String, source: std::io::Error },
+    /// `serve` stopped at its drain deadline with work cut short (exit 1).
+    #[error("{0}")]
+    CutShort(String),
 }
 
 impl CliError {
@@ -29,6 +33,7 @@ impl CliError {
         match self {
             CliError::Usd(curvenet_schema::usd::UsdError::Open { message, .. }) if is_transient(message) => 75,
             CliError::Io { .. } => 75,
+            CliError::CutShort(_) => 1,
             _ => 2,
         }
     }
@@ -49,7 +54,7 @@ pub type CliResult<T = ()> = Result<T, CliError>;
 pub fn bind_mesh(
     mesh: &curvenet_schema::MeshData,
     nets: &[curvenet_schema::CurvenetData],
-) -> CliResult<curvenet_core::Binding> {
+) -> CliResult<(curvenet_core::Binding, f64)> {
     use curvenet_core::binding::surface::Surface;
     use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
     let core = |context: String| move |source| CliError::Core { context, source };
@@ -61,6 +66,7 @@ pub fn bind_mesh(
     let t0 = std::time::Instant::now();
     let surface = Surface::new(&topology, &mesh.projection_points).map_err(core(mesh.path.clone()))?;
     let surface_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let t1 = std::time::Instant::now();
     let layouts = nets
         .iter()
         .map(|net| {
@@ -71,12 +77,14 @@ pub fn bind_mesh(
                 .map_err(core(context()))
         })
         .collect::<CliResult<Vec<_>>>()?;
+    let analysis_ms = t1.elapsed().as_secs_f64() * 1e3;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms).map_err(core(format!(
+    let binding = Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms).map_err(core(format!(
         "{} (binding {})",
         mesh.path,
         net_list(nets)
-    )))
+    )))?;
+    Ok((binding, analysis_ms))
 }
 
 /// `/A/Net, /B/Net`: the curvenets' paths for messages.

@@ -13,7 +13,7 @@ use clap::Parser as _;
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_schema::{CurvenetData, MeshData};
-use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config, FrameSource, ViewerStage};
+use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, ViewerStage};
 
 use super::{CliError, CliResult};
 
@@ -35,9 +35,43 @@ pub struct Args {
     /// Threads solving frames (0: one per core).
     #[arg(long, env = "CURVENET_SOLVE_THREADS", default_value_t = 0)]
     pub solve_threads: usize,
-    /// Seconds requests in flight may finish after SIGTERM/SIGINT.
+    /// Seconds requests in flight may finish after SIGTERM/SIGINT; then
+    /// what still runs is cancelled and the process exits with status 1.
     #[arg(long, env = "CURVENET_DRAIN_TIMEOUT", default_value_t = 30.0)]
     pub drain_timeout: f64,
+    /// Largest sample_density of a curvenet (samples per mean edge length).
+    #[arg(long, env = "CURVENET_MAX_SAMPLE_DENSITY", default_value_t = curvenet_server::DEFAULT_MAX_SAMPLE_DENSITY)]
+    pub max_sample_density: f64,
+    /// Largest number of curvenet segments of a binding per mesh vertex
+    /// (never fewer than 20000 in all).
+    #[arg(long, env = "CURVENET_MAX_SEGMENTS_PER_VERTEX", default_value_t = curvenet_server::DEFAULT_MAX_SEGMENTS_PER_VERTEX)]
+    pub max_segments_per_vertex: f64,
+    /// Seconds a binding may compute before it is cancelled (422 limit_exceeded).
+    #[arg(long, env = "CURVENET_MAX_BINDING_SECONDS", default_value_t = 120.0)]
+    pub max_binding_seconds: f64,
+    /// Largest answer of a frames:batch request (frames × vertices × 12
+    /// bytes, 48 with gradients), e.g. 256MiB.
+    #[arg(long, env = "CURVENET_MAX_BATCH_BYTES", default_value = "256MiB", value_parser = parse_bytes)]
+    pub max_batch_bytes: u64,
+    /// Seconds a request waits in line for a solve permit when all are taken (then 503).
+    #[arg(long, env = "CURVENET_QUEUE_TIMEOUT", default_value_t = 2.0)]
+    pub queue_timeout: f64,
+    /// Seconds a client has to send a request's headers once it started.
+    #[arg(long, env = "CURVENET_HEADER_TIMEOUT", default_value_t = 10.0)]
+    pub header_timeout: f64,
+    /// Seconds an idle connection (no request, no byte moving) stays open.
+    #[arg(long, env = "CURVENET_IDLE_TIMEOUT", default_value_t = 60.0)]
+    pub idle_timeout: f64,
+    /// Seconds a request body may stall; after as long, it must also have
+    /// arrived at --body-min-rate on average (408 and the connection closed).
+    #[arg(long, env = "CURVENET_BODY_TIMEOUT", default_value_t = 30.0)]
+    pub body_timeout: f64,
+    /// Slowest average request-body rate accepted after --body-timeout, e.g. 16KiB (per second).
+    #[arg(long, env = "CURVENET_BODY_MIN_RATE", default_value = "16KiB", value_parser = parse_bytes)]
+    pub body_min_rate: u64,
+    /// Connections open at once; beyond, a client gets 503 and is disconnected.
+    #[arg(long, env = "CURVENET_MAX_CONNECTIONS", default_value_t = curvenet_server::DEFAULT_MAX_CONNECTIONS)]
+    pub max_connections: usize,
     /// Require `Authorization: Bearer TOKEN` on every route but /healthz and
     /// /readyz. Prefer the environment variable (a flag shows in `ps`).
     #[arg(long, env = "CURVENET_TOKEN", hide_env_values = true)]
@@ -80,11 +114,26 @@ pub fn run(args: &Args) -> CliResult {
     if args.healthcheck {
         healthcheck(&args.addr);
     }
-    if !(args.drain_timeout.is_finite() && args.drain_timeout >= 0.0) {
-        return Err(CliError::Input(format!(
-            "--drain-timeout must be a non-negative number of seconds, got {}",
-            args.drain_timeout
-        )));
+    let seconds = |flag: &str, x: f64, zero_ok: bool| {
+        if x.is_finite() && (x > 0.0 || (zero_ok && x == 0.0)) && x <= 1e6 {
+            Ok(Duration::from_secs_f64(x))
+        } else {
+            let what = if zero_ok { "a non-negative" } else { "a positive" };
+            Err(CliError::Input(format!("{flag} must be {what} number of seconds (at most 1e6), got {x}")))
+        }
+    };
+    let drain_timeout = seconds("--drain-timeout", args.drain_timeout, true)?;
+    let queue_timeout = seconds("--queue-timeout", args.queue_timeout, true)?;
+    let max_binding_time = seconds("--max-binding-seconds", args.max_binding_seconds, false)?;
+    let header_timeout = seconds("--header-timeout", args.header_timeout, false)?;
+    let idle_timeout = seconds("--idle-timeout", args.idle_timeout, false)?;
+    let body_timeout = seconds("--body-timeout", args.body_timeout, false)?;
+    for (flag, x) in
+        [("--max-sample-density", args.max_sample_density), ("--max-segments-per-vertex", args.max_segments_per_vertex)]
+    {
+        if !(x.is_finite() && x > 0.0) {
+            return Err(CliError::Input(format!("{flag} must be a positive number, got {x}")));
+        }
     }
     let filter = std::env::var("CURVENET_LOG").or_else(|_| std::env::var("RUST_LOG")).unwrap_or_else(|_| "info".into());
     let _ = tracing_subscriber::fmt()
@@ -97,9 +146,23 @@ pub fn run(args: &Args) -> CliResult {
         body_limit: usize::try_from(args.body_limit).unwrap_or(usize::MAX),
         max_solves: args.max_solves,
         solve_threads: args.solve_threads,
-        drain_timeout: Duration::from_secs_f64(args.drain_timeout),
+        drain_timeout,
         token: args.token.clone().filter(|t| !t.is_empty()),
         bake_roots: args.bake_roots.clone(),
+        work: curvenet_server::WorkLimits {
+            max_sample_density: args.max_sample_density,
+            max_segments_per_vertex: args.max_segments_per_vertex,
+            max_binding_time,
+        },
+        queue_timeout,
+        max_batch_bytes: args.max_batch_bytes,
+        connections: curvenet_server::ConnectionLimits {
+            header_timeout,
+            idle_timeout,
+            body_timeout,
+            body_min_rate: args.body_min_rate,
+            max_connections: args.max_connections.max(1),
+        },
     };
     let state = AppState::new(config, Some(baker())).map_err(|e| CliError::Input(e.to_string()))?;
     for path in &args.open_stages {
@@ -112,7 +175,10 @@ pub fn run(args: &Args) -> CliResult {
         .thread_name("curvenet-http")
         .build()
         .map_err(|e| CliError::Io { context: "starting the runtime".into(), source: e })?;
-    runtime.block_on(async {
+    let drained = runtime.block_on(async {
+        // Listen for the signals before announcing the address: a SIGTERM
+        // right after startup must stop the server, not kill the process.
+        let shutdown = shutdown_signal().map_err(|e| CliError::Io { context: "installing signal handlers".into(), source: e })?;
         let listener = tokio::net::TcpListener::bind(&args.addr)
             .await
             .map_err(|e| CliError::Io { context: format!("binding {}", args.addr), source: e })?;
@@ -124,33 +190,48 @@ pub fn run(args: &Args) -> CliResult {
         use std::io::Write as _;
         let _ = std::io::stdout().flush();
         tracing::info!(%addr, auth = state.config().token.is_some(), cache_bytes = state.config().cache_bytes, "curvenet serve");
-        curvenet_server::run(listener, state, shutdown_signal())
+        curvenet_server::run(listener, state, shutdown)
             .await
             .map_err(|e| CliError::Io { context: format!("serving on {addr}"), source: e })
     })?;
-    tracing::info!("stopped");
-    Ok(())
+    // Work still running (a cancelled binding finishing its factorisation, a
+    // bake) must not keep the process alive past the drain deadline.
+    runtime.shutdown_timeout(Duration::from_millis(200));
+    match drained {
+        Drained::Clean => {
+            tracing::info!("stopped");
+            Ok(())
+        }
+        Drained::CutShort { connections, bindings } => {
+            tracing::warn!(connections, bindings, "stopped with requests cut short at the drain timeout");
+            Err(CliError::CutShort(format!(
+                "the drain timeout ({:.1} s) passed with {connections} connections still busy; {bindings} bindings cancelled",
+                drain_timeout.as_secs_f64()
+            )))
+        }
+    }
 }
 
-/// Resolves on SIGINT (Ctrl-C) or SIGTERM (docker stop, Kubernetes).
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
+/// A future resolving on SIGINT (Ctrl-C) or SIGTERM (docker stop,
+/// Kubernetes); the handlers are installed when this is called.
+fn shutdown_signal() -> std::io::Result<impl std::future::Future<Output = ()> + Send + 'static> {
     #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
+    {
+        use tokio::signal::unix::{SignalKind, signal};
+        let mut term = signal(SignalKind::terminate())?;
+        let mut int = signal(SignalKind::interrupt())?;
+        Ok(async move {
+            tokio::select! {
+                _ = term.recv() => {},
+                _ = int.recv() => {},
             }
-            Err(_) => std::future::pending::<()>().await,
-        }
-    };
+        })
+    }
     #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        _ = ctrl_c => {},
-        _ = term => {},
+    {
+        Ok(async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
     }
 }
 
@@ -195,13 +276,26 @@ fn baker() -> Baker {
             job.output.clone().into_os_string(),
         ];
         if let Some(f) = &job.frames {
+            // Checked here so the answer names the field, not a command-line flag.
+            super::bake::parse_frames(f).map_err(|m| BakeFailure::Input(format!("frames {f:?}: {m}")))?;
             argv.push("--frames".into());
             argv.push(f.into());
         }
+        for root in &job.roots {
+            argv.push("--confine".into());
+            argv.push(root.clone().into_os_string());
+        }
         argv.push("--quiet".into());
-        let bake = Bake::try_parse_from(argv).map_err(|e| BakeFailure::Input(e.to_string()))?;
-        super::bake::run(&bake.args).map_err(|e| {
-            if e.exit_code() == 75 { BakeFailure::Retry(e.to_string()) } else { BakeFailure::Input(e.to_string()) }
+        let bake = Bake::try_parse_from(argv).map_err(|e| {
+            // Not reachable with checked paths and frames; no command-line hints in an HTTP answer.
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
+            BakeFailure::Input(first.to_string())
+        })?;
+        super::bake::run(&bake.args).map_err(|e| match e {
+            CliError::Usd(curvenet_schema::usd::UsdError::Forbidden { .. }) => BakeFailure::Forbidden(e.to_string()),
+            e if e.exit_code() == 75 => BakeFailure::Retry(e.to_string()),
+            e => BakeFailure::Input(e.to_string()),
         })
     })
 }

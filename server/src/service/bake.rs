@@ -3,7 +3,8 @@
 //! lives in the binary, `cli::bake`; tests supply their own).
 //!
 //! A path is allowed when, after resolving `..` and symlinks, it lies in a
-//! root. The stage must exist; the output's parent directory must exist
+//! root. So is every layer the stage opens: the baker opens the stage with a
+//! resolver that refuses anything outside the roots (`BakeJob::roots`). The stage must exist; the output's parent directory must exist
 //! (and, if the output exists, the output itself is resolved too, so a
 //! symlink inside a root cannot point the write outside it).
 
@@ -19,6 +20,9 @@ pub struct BakeJob {
     pub output: PathBuf,
     /// `A-B` or `A`, as the bake command takes it.
     pub frames: Option<String>,
+    /// The canonical bake roots: every layer and asset the stage opens
+    /// (sublayers, references, payloads) must resolve inside one.
+    pub roots: Vec<PathBuf>,
 }
 
 /// Why a bake failed.
@@ -28,6 +32,8 @@ pub enum BakeFailure {
     Input(String),
     /// Worth retrying (an I/O failure): 503.
     Retry(String),
+    /// The stage opens a layer or asset outside the roots: 403 `path_forbidden`.
+    Forbidden(String),
 }
 
 /// Runs a bake to completion (blocking).

@@ -4,6 +4,7 @@
 
 use curvenet_schema::wire::{BinaryArray, BinaryFrameHeader, BinaryResponseHeader};
 
+use crate::bounded::BatchError;
 use crate::error::{Code, ServiceError};
 use crate::frames::{Frame, Solved};
 
@@ -13,8 +14,8 @@ fn malformed(message: impl Into<String>) -> ServiceError {
     ServiceError::new(Code::MalformedBinary, message)
 }
 
-/// Splits a binary body into its JSON header and the data after it.
-fn split(body: &[u8]) -> Result<(serde_json::Value, &[u8]), ServiceError> {
+/// Splits a binary body into its JSON header (bytes) and the data after it.
+fn split(body: &[u8]) -> Result<(&[u8], &[u8]), ServiceError> {
     if body.len() < 4 {
         return Err(malformed(format!(
             "the body has {} bytes; it must start with a u32 little-endian header length",
@@ -25,129 +26,225 @@ fn split(body: &[u8]) -> Result<(serde_json::Value, &[u8]), ServiceError> {
     if body.len() - 4 < h {
         return Err(malformed(format!("the header length is {h} bytes but only {} bytes follow it", body.len() - 4)));
     }
-    let header =
-        serde_json::from_slice(&body[4..4 + h]).map_err(|e| malformed(format!("the header is not JSON: {e}")))?;
-    Ok((header, &body[4 + h..]))
+    Ok((&body[4..4 + h], &body[4 + h..]))
+}
+
+/// What a binding expects of a frame's arrays. Every array a header lists
+/// is checked against it before anything sized by the header is allocated,
+/// so a header naming a huge index or shape costs nothing.
+#[derive(Debug, Clone, Copy)]
+pub struct Expected<'a> {
+    /// Control points of each curvenet's pool (its length: the curvenets).
+    pub pools: &'a [usize],
+    pub vertices: usize,
+    pub blend_shapes: usize,
+    /// Most frames a batch may hold (see `bounded`).
+    pub max_frames: usize,
 }
 
 /// Parses a binary frame request: one frame, or `{"frames": [...]}` (then
-/// `batch` is true). Only the framing and the header's own consistency are
-/// checked here; counts against the binding are checked by `frames::validate`.
-pub fn parse(body: &[u8]) -> Result<(Vec<Frame>, bool), ServiceError> {
+/// `batch` is true). The framing, the header and every array's name, index
+/// and shape (against `expected`) are checked before any array is decoded;
+/// values (finiteness) are checked by `frames::validate`. A curvenet without
+/// a `posed` array is not articulated.
+pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool), ServiceError> {
     let (header, mut data) = split(body)?;
-    let batch = header.get("frames").is_some();
-    let headers: Vec<BinaryFrameHeader> = if batch {
-        #[derive(serde::Deserialize)]
-        #[serde(deny_unknown_fields)]
-        struct Batch {
-            frames: Vec<BinaryFrameHeader>,
+    // Typed straight from the bytes (a generic JSON value costs tens of bytes
+    // per byte of header), a batch's frames counted as they come.
+    let (headers, batch): (Vec<BinaryFrameHeader>, bool) = match crate::bounded::frames(header, expected.max_frames) {
+        Ok(h) => (h, true),
+        Err(BatchError::NotBatch) => {
+            (vec![serde_json::from_slice(header).map_err(|e| malformed(format!("the header: {e}")))?], false)
         }
-        serde_json::from_value::<Batch>(header).map_err(|e| malformed(format!("the batch header: {e}")))?.frames
-    } else {
-        vec![serde_json::from_value(header).map_err(|e| malformed(format!("the header: {e}")))?]
+        Err(BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, expected.vertices)),
+        Err(BatchError::Malformed(e)) => {
+            // A single frame's header is not an object starting with "frames".
+            match serde_json::from_slice::<BinaryFrameHeader>(header) {
+                Ok(h) => (vec![h], false),
+                Err(_) => return Err(malformed(format!("the header: {e}"))),
+            }
+        }
     };
+    // Plan every array of every frame first: (frame, array, rows, width).
+    let mut plans: Vec<Vec<Planned>> = Vec::with_capacity(headers.len());
+    let mut total_bytes = 0usize;
+    for (f, h) in headers.iter().enumerate() {
+        let ctx = |e: ServiceError| if batch { e.context(&format!("frames[{f}]")) } else { e };
+        let plan = plan_frame(h, expected).map_err(ctx)?;
+        total_bytes += plan.iter().map(|p| p.rows * p.kind.width() * 4).sum::<usize>();
+        plans.push(plan);
+    }
+    if total_bytes != data.len() {
+        let (f, a, p) = first_short(&plans, data.len());
+        return Err(match p {
+            Some(p) => {
+                let m = format!(
+                    "arrays[{a}] ({}) of shape [{}{}] needs {} bytes but only {} remain",
+                    p.kind.name(),
+                    p.rows,
+                    if p.kind.width() == 3 { ", 3" } else { "" },
+                    p.rows * p.kind.width() * 4,
+                    p.remaining
+                );
+                malformed(if batch { format!("frames[{f}]: {m}") } else { m })
+            }
+            None => malformed(format!("{} bytes follow the last array the header lists", data.len() - total_bytes)),
+        });
+    }
     let mut frames = Vec::with_capacity(headers.len());
-    for (f, h) in headers.into_iter().enumerate() {
-        let ctx = |m: String| if batch { format!("frames[{f}]: {m}") } else { m };
+    for (h, plan) in headers.into_iter().zip(plans) {
         let mut frame = Frame {
             mode: h.blend_shape_mode,
             gradients: h.gradients,
             topology_hash: h.topology_hash,
             ..Frame::default()
         };
-        let mut posed: Vec<(usize, Vec<[f64; 3]>)> = Vec::new();
-        for (a, array) in h.arrays.iter().enumerate() {
-            if !matches!(array.dtype.as_str(), "f32" | "float32" | "<f4") {
-                return Err(malformed(ctx(format!(
-                    "arrays[{a}] ({}) has dtype {:?}; only little-endian f32 is accepted",
-                    array.name, array.dtype
-                ))));
-            }
-            let (width, what) = match array.name.as_str() {
-                "posed" | "rest" => (3, "[n, 3]"),
-                "blend_shape_weights" => (1, "[k]"),
-                other => {
-                    return Err(malformed(ctx(format!(
-                        "arrays[{a}] is named {other:?}; expected posed (with index), rest or blend_shape_weights"
-                    ))));
-                }
-            };
-            let rows = match (width, array.shape.as_slice()) {
-                (3, &[n, 3]) | (1, &[n]) => n,
-                _ => {
-                    return Err(malformed(ctx(format!(
-                        "arrays[{a}] ({}) has shape {:?}; expected {what}",
-                        array.name, array.shape
-                    ))));
-                }
-            };
-            let bytes = usize::try_from(rows)
-                .ok()
-                .and_then(|r| r.checked_mul(width * 4))
-                .filter(|&b| b <= data.len())
-                .ok_or_else(|| {
-                    malformed(ctx(format!(
-                        "arrays[{a}] ({}) of shape {:?} needs {} bytes but only {} remain",
-                        array.name,
-                        array.shape,
-                        rows.saturating_mul(width as u64 * 4),
-                        data.len()
-                    )))
-                })?;
-            let (raw, rest) = data.split_at(bytes);
+        for p in plan {
+            let (raw, rest) = data.split_at(p.rows * p.kind.width() * 4);
             data = rest;
-            match array.name.as_str() {
-                "posed" => {
-                    let k = array
-                        .index
-                        .ok_or_else(|| malformed(ctx(format!("arrays[{a}] (posed) has no index (the curvenet)"))))?
-                        as usize;
-                    if posed.iter().any(|(j, _)| *j == k) {
-                        return Err(malformed(ctx(format!("arrays[{a}]: posed index {k} appears twice"))));
+            match p.kind {
+                Kind::Posed(k) => {
+                    if frame.posed.is_empty() {
+                        frame.posed = vec![None; expected.pools.len()];
                     }
-                    posed.push((k, points(raw)));
+                    frame.posed[k] = Some(points(raw));
                 }
-                "rest" if frame.rest.is_some() => {
-                    return Err(malformed(ctx(format!("arrays[{a}]: rest appears twice"))));
-                }
-                "rest" => frame.rest = Some(points(raw)),
-                _ if frame.weights.is_some() => {
-                    return Err(malformed(ctx(format!("arrays[{a}]: blend_shape_weights appears twice"))));
-                }
-                _ => {
+                Kind::Rest => frame.rest = Some(points(raw)),
+                Kind::Weights => {
                     frame.weights =
                         Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect())
                 }
             }
         }
-        if let Some(max) = posed.iter().map(|(k, _)| *k).max() {
-            frame.posed = vec![None; max + 1];
-            for (k, p) in posed {
-                frame.posed[k] = Some(p);
-            }
-        }
         frames.push(frame);
-    }
-    if !data.is_empty() {
-        return Err(malformed(format!("{} bytes follow the last array the header lists", data.len())));
     }
     Ok((frames, batch))
 }
 
-/// Fits a binary frame's posed pools to the binding's `n_curvenets`: a
-/// curvenet without a `posed` array is not articulated; an index past the
-/// last curvenet is refused.
-pub fn fit_posed(frame: &mut Frame, n_curvenets: usize) -> Result<(), ServiceError> {
-    if frame.posed.len() > n_curvenets {
-        return Err(ServiceError::new(
-            Code::IndexOutOfRange,
-            format!("posed index {} refers to a curvenet, but the binding has {n_curvenets}", frame.posed.len() - 1),
-        ));
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Posed(usize),
+    Rest,
+    Weights,
+}
+
+impl Kind {
+    fn width(self) -> usize {
+        match self {
+            Kind::Posed(_) | Kind::Rest => 3,
+            Kind::Weights => 1,
+        }
     }
-    if !frame.posed.is_empty() {
-        frame.posed.resize(n_curvenets, None);
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Posed(_) => "posed",
+            Kind::Rest => "rest",
+            Kind::Weights => "blend_shape_weights",
+        }
     }
-    Ok(())
+}
+
+/// One array of a frame, checked against the binding: its rows are the
+/// binding's own count, so its size is bounded by the binding, not the header.
+#[derive(Debug, Clone, Copy)]
+struct Planned {
+    kind: Kind,
+    rows: usize,
+}
+
+/// Checks one frame header's arrays against the binding, in order.
+fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Planned>, ServiceError> {
+    let mut plan: Vec<Planned> = Vec::with_capacity(h.arrays.len().min(expected.pools.len() + 2));
+    for (a, array) in h.arrays.iter().enumerate() {
+        if !matches!(array.dtype.as_str(), "f32" | "float32" | "<f4") {
+            return Err(malformed(format!(
+                "arrays[{a}] ({}) has dtype {:?}; only little-endian f32 is accepted",
+                array.name, array.dtype
+            )));
+        }
+        let kind = match array.name.as_str() {
+            "posed" => {
+                let k =
+                    array.index.ok_or_else(|| malformed(format!("arrays[{a}] (posed) has no index (the curvenet)")))?;
+                if k as usize >= expected.pools.len() {
+                    return Err(ServiceError::new(
+                        Code::IndexOutOfRange,
+                        format!(
+                            "arrays[{a}]: posed index {k} refers to a curvenet, but the binding has {}",
+                            expected.pools.len()
+                        ),
+                    ));
+                }
+                Kind::Posed(k as usize)
+            }
+            "rest" => Kind::Rest,
+            "blend_shape_weights" => Kind::Weights,
+            other => {
+                return Err(malformed(format!(
+                    "arrays[{a}] is named {other:?}; expected posed (with index), rest or blend_shape_weights"
+                )));
+            }
+        };
+        if plan.iter().any(|p| p.kind == kind) {
+            return Err(malformed(match kind {
+                Kind::Posed(k) => format!("arrays[{a}]: posed index {k} appears twice"),
+                other => format!("arrays[{a}]: {} appears twice", other.name()),
+            }));
+        }
+        let rows = match (kind.width(), array.shape.as_slice()) {
+            (3, &[n, 3]) | (1, &[n]) => n,
+            _ => {
+                let what = if kind.width() == 3 { "[n, 3]" } else { "[k]" };
+                return Err(malformed(format!(
+                    "arrays[{a}] ({}) has shape {:?}; expected {what}",
+                    array.name, array.shape
+                )));
+            }
+        };
+        let (want, message) = match kind {
+            Kind::Posed(k) => (
+                expected.pools[k],
+                format!("posed[{k}] has {rows} control points, but curvenet {k}'s pool has {}", expected.pools[k]),
+            ),
+            Kind::Rest => {
+                (expected.vertices, format!("rest has {rows} points, but the mesh has {} vertices", expected.vertices))
+            }
+            Kind::Weights => (
+                expected.blend_shapes,
+                format!(
+                    "blend_shape_weights has {rows} weights, but the binding has {} blend shapes",
+                    expected.blend_shapes
+                ),
+            ),
+        };
+        if rows != want as u64 {
+            return Err(ServiceError::new(Code::CountMismatch, format!("arrays[{a}]: {message}")));
+        }
+        plan.push(Planned { kind, rows: want });
+    }
+    Ok(plan)
+}
+
+/// The first planned array that does not fit in `available` data bytes:
+/// (frame, array, the array and what remained for it).
+fn first_short(plans: &[Vec<Planned>], available: usize) -> (usize, usize, Option<Short>) {
+    let mut remaining = available;
+    for (f, plan) in plans.iter().enumerate() {
+        for (a, p) in plan.iter().enumerate() {
+            let need = p.rows * p.kind.width() * 4;
+            if need > remaining {
+                return (f, a, Some(Short { kind: p.kind, rows: p.rows, remaining }));
+            }
+            remaining -= need;
+        }
+    }
+    (0, 0, None)
+}
+
+struct Short {
+    kind: Kind,
+    rows: usize,
+    remaining: usize,
 }
 
 fn points(raw: &[u8]) -> Vec<[f64; 3]> {

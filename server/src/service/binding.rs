@@ -9,11 +9,12 @@ use std::time::Instant;
 use curvenet_core::binding::CutOptions;
 use curvenet_core::binding::surface::Surface;
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{BindOptions, BindWarning, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::{BindOptions, BindWarning, Binding, Cancel, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, SegmentAt, Warning};
 
-use crate::cache::{Entry, Key, estimate_bytes, hex};
+use crate::cache::{Entry, Key, hex};
 use crate::error::{Code, Phase, ServiceError};
+use crate::limits::{Prediction, WorkLimits};
 
 /// Binding options with the defaults filled in (what the id hashes).
 #[derive(Debug, Clone, Copy)]
@@ -46,24 +47,37 @@ impl EffectiveOptions {
         Ok(Self { strict: o.strict, snap_tolerance: snap, max_projection_distance: far })
     }
 
-    fn bind_options(&self) -> BindOptions {
+    fn bind_options(&self, cancel: Cancel) -> BindOptions {
         let mut cut = CutOptions::default();
         cut.snap_tolerance = self.snap_tolerance;
         cut.max_projection_distance = self.max_projection_distance;
-        let mut o = BindOptions::default().with_strict(self.strict);
+        let mut o = BindOptions::default().with_strict(self.strict).with_cancel(cancel);
         o.cut = cut;
         o
     }
 }
 
+/// Largest coordinate magnitude accepted anywhere (points, pools, offsets):
+/// an f32 (the wire and output type) spaces its values 1e8 apart at 1e15,
+/// so larger values are no longer geometry, and their squares stay far from
+/// overflowing the f64 arithmetic of the core.
+pub const MAX_COORDINATE: f64 = 1e15;
+
+/// Largest blend-shape weight magnitude accepted (weights are about 0..1;
+/// UsdSkel extrapolates linearly beyond, and beyond a million nothing useful
+/// remains).
+pub const MAX_WEIGHT: f64 = 1e6;
+
 /// Checks what can be checked without building anything: counts,
-/// indices, finiteness, sample densities. Names the offending element.
+/// indices, finiteness and magnitudes, sample densities, blend-shape point
+/// indices. Names the offending element. Allocates at most one bit per
+/// mesh vertex (the duplicate check of point indices).
 pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
     let n = req.projection_points.len();
     if n == 0 {
         return Err(ServiceError::new(Code::EmptyInput, "projection_points is empty"));
     }
-    non_finite(&req.projection_points, "projection_points")?;
+    check_points(&req.projection_points, "projection_points")?;
     if req.curvenets.is_empty() {
         return Err(ServiceError::new(Code::EmptyInput, "curvenets is empty: a binding needs at least one curvenet"));
     }
@@ -74,7 +88,13 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
                 format!("curvenets[{k}].sample_density must be finite and positive, got {}", c.sample_density),
             ));
         }
-        non_finite(&c.pool, &format!("curvenets[{k}].pool"))?;
+        if c.pool.is_empty() {
+            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].pool is empty")));
+        }
+        if c.splines.is_empty() {
+            return Err(ServiceError::new(Code::EmptyInput, format!("curvenets[{k}].splines is empty")));
+        }
+        check_points(&c.pool, &format!("curvenets[{k}].pool"))?;
         for (s, spline) in c.splines.iter().enumerate() {
             if let Some(&v) = spline.iter().find(|&&v| v as usize >= c.pool.len()) {
                 return Err(ServiceError::new(
@@ -87,48 +107,102 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
             }
         }
     }
+    let mut seen = Vec::new();
     for (k, s) in req.blend_shapes.iter().enumerate() {
-        non_finite(&s.offsets, &format!("blend_shapes[{k}].offsets"))?;
+        check_points(&s.offsets, &format!("blend_shapes[{k}].offsets"))?;
         for (i, ib) in s.inbetweens.iter().enumerate() {
-            non_finite(&ib.offsets, &format!("blend_shapes[{k}].inbetweens[{i}].offsets"))?;
+            if !(ib.weight.is_finite() && ib.weight.abs() <= MAX_WEIGHT) {
+                return Err(ServiceError::new(
+                    Code::InvalidParameter,
+                    format!(
+                        "blend_shapes[{k}].inbetweens[{i}].weight must be finite and at most {MAX_WEIGHT:e} in magnitude, got {}",
+                        ib.weight
+                    ),
+                ));
+            }
+            check_points(&ib.offsets, &format!("blend_shapes[{k}].inbetweens[{i}].offsets"))?;
         }
-        if let Some(ix) = &s.point_indices
-            && let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n)
-        {
-            return Err(ServiceError::new(
-                Code::IndexOutOfRange,
-                format!("blend_shapes[{k}].point_indices[{i}] is vertex {v}, but the mesh has {n} vertices"),
-            ));
+        if let Some(ix) = &s.point_indices {
+            if let Some((i, &v)) = ix.iter().enumerate().find(|(_, v)| **v as usize >= n) {
+                return Err(ServiceError::new(
+                    Code::IndexOutOfRange,
+                    format!("blend_shapes[{k}].point_indices[{i}] is vertex {v}, but the mesh has {n} vertices"),
+                ));
+            }
+            // Each vertex at most once: UsdSkel's point indices name distinct points.
+            seen.clear();
+            seen.resize(n.div_ceil(64), 0u64);
+            for (i, &v) in ix.iter().enumerate() {
+                let (word, bit) = (v as usize / 64, 1u64 << (v % 64));
+                if seen[word] & bit != 0 {
+                    let first = ix.iter().position(|&x| x == v).unwrap_or(0);
+                    return Err(ServiceError::new(
+                        Code::InvalidParameter,
+                        format!(
+                            "blend_shapes[{k}].point_indices[{i}] repeats vertex {v} (first at point_indices[{first}]); each vertex may appear once"
+                        ),
+                    ));
+                }
+                seen[word] |= bit;
+            }
         }
     }
     Ok(())
 }
 
-/// The first non-finite point of `points`, as a `non_finite` error naming `what` and the index.
-pub fn non_finite(points: &[[f64; 3]], what: &str) -> Result<(), ServiceError> {
-    match points.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+/// Checks points: every coordinate finite (`non_finite`) and at most
+/// [`MAX_COORDINATE`] in magnitude (`invalid_parameter`), naming `what` and the index.
+pub fn check_points(points: &[[f64; 3]], what: &str) -> Result<(), ServiceError> {
+    match points.iter().position(|p| !p.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE)) {
         None => Ok(()),
+        Some(i) if points[i].iter().all(|x| x.is_finite()) => Err(ServiceError::new(
+            Code::InvalidParameter,
+            format!("{what}[{i}] = {:?} is larger than {MAX_COORDINATE:e} in magnitude", points[i]),
+        )),
         Some(i) => {
             Err(ServiceError::new(Code::NonFinite, format!("{what}[{i}] has a non-finite coordinate {:?}", points[i])))
         }
     }
 }
 
+/// Predicts what binding `req` (validated) will cost and checks it against
+/// `limits` (see limits.rs). Builds the mesh's topology to measure its mean
+/// edge length: allocations proportional to the request, nothing more.
+pub fn predict(req: &BindingRequest, limits: &WorkLimits) -> Result<Prediction, ServiceError> {
+    let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, req.projection_points.len())
+        .map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
+    let mean_edge_length = mesh.mean_edge_length(&req.projection_points);
+    if !(mean_edge_length.is_finite() && mean_edge_length > 0.0) {
+        return Err(ServiceError::new(
+            Code::InvalidMesh,
+            format!("mesh: its mean edge length is {mean_edge_length}: every point coincides"),
+        ));
+    }
+    crate::limits::check(req, mean_edge_length, limits)
+}
+
 /// Builds the entry for `req` (already validated): the curvenet analysis,
 /// the binding, the blend shapes. CPU-heavy: run it off the async runtime.
-pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOptions) -> Result<Entry, ServiceError> {
+/// `cancel` stops it (`Error::Cancelled`, flagged on the returned error);
+/// `keep` workspaces are budgeted in the entry's size (one per solve thread).
+pub fn build(
+    req: &BindingRequest,
+    key: Key,
+    topology: Key,
+    options: EffectiveOptions,
+    cancel: Cancel,
+    keep: usize,
+) -> Result<Entry, ServiceError> {
     let t0 = Instant::now();
     let n = req.projection_points.len();
     let mesh = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, n)
         .map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
     // Blend shapes first: cheap, and a bad shape should not cost a factorisation.
-    let mut shape_offsets = 0;
     let shapes = req
         .blend_shapes
         .iter()
         .enumerate()
         .map(|(k, s)| {
-            shape_offsets += s.offsets.len() * (1 + s.inbetweens.len());
             let ib = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
             BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib)
                 .map_err(|e| ServiceError::core(e, Phase::Bind).context(&format!("blend_shapes[{k}]")))
@@ -143,6 +217,8 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
     let surface =
         Surface::new(&mesh, &req.projection_points).map_err(|e| ServiceError::core(e, Phase::Bind).context("mesh"))?;
     let surface_ms = t_surface.elapsed().as_secs_f64() * 1e3;
+    let stopped = |e| ServiceError::core(e, Phase::Bind);
+    cancel.check("the curvenet analysis").map_err(stopped)?;
     let layouts = req
         .curvenets
         .iter()
@@ -159,11 +235,22 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
     // The surface is timed on its own (`surface_ms`), not as analysis.
     let analysis_ms = t0.elapsed().as_secs_f64() * 1e3 - surface_ms;
     let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::with_surface(surface, &refs, &options.bind_options(), surface_ms)
+    let binding = Binding::with_surface(surface, &refs, &options.bind_options(cancel), surface_ms)
         .map_err(|e| ServiceError::core(e, Phase::Bind))?;
+    drop(layouts);
     let total_ms = t0.elapsed().as_secs_f64() * 1e3;
 
-    let size_bytes = estimate_bytes(&binding, shape_offsets) + (n as u64) * 24;
+    // What the entry holds, measured (see `curvenet_core::heap`): the
+    // binding, the shapes, the projection pose, and the workspaces frames
+    // reuse (one per solve thread; the first is made now and measured).
+    let workspace = binding.workspace();
+    let keep = keep.max(1);
+    let size_bytes = (binding.heap_bytes()
+        + std::mem::size_of::<Binding>()
+        + shapes.as_ref().map_or(0, BlendShapes::heap_bytes)
+        + req.projection_points.len() * std::mem::size_of::<[f64; 3]>()
+        + keep * workspace.heap_bytes()
+        + ENTRY_OVERHEAD) as u64;
     let s = binding.stats();
     let t = binding.timings();
     let response = BindingResponse {
@@ -174,33 +261,8 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
         control_points: req.curvenets.iter().map(|c| c.pool.len()).collect(),
         blend_shapes: n_shapes,
         size_bytes,
-        stats: BindingStats {
-            mesh_vertices: s.mesh_vertices,
-            mesh_faces: s.mesh_faces,
-            samples: s.samples,
-            segments: s.segments,
-            cut_vertices: s.cut_vertices,
-            cut_faces: s.cut_faces,
-            cut_halfedges: s.cut_halfedges,
-            cracks: s.cracks,
-            islands_removed: s.islands_removed,
-            chord_paths: s.embedding.chord,
-            straightest_paths: s.embedding.straightest,
-            fallback_paths: s.embedding.fallback,
-            segments_left_out: s.embedding.disconnected,
-            detours: s.detours,
-            unknowns: s.unknowns,
-            constraints: s.constraints,
-            factor_nonzeros: s.factor_nonzeros,
-        },
-        timings: BindingTimings {
-            analysis_ms,
-            surface_ms: t.surface_ms,
-            cutting_ms: t.cutting_ms,
-            assembly_ms: t.assembly_ms,
-            factor_ms: t.factor_ms,
-            total_ms,
-        },
+        stats: BindingStats::from(&s),
+        timings: BindingTimings::new(analysis_ms, &t, total_ms),
         warnings: binding.warnings().iter().map(warning).collect(),
     };
     Ok(Entry {
@@ -212,9 +274,14 @@ pub fn build(req: &BindingRequest, key: Key, topology: Key, options: EffectiveOp
         projection_points: req.projection_points.clone(),
         response,
         size_bytes,
-        workspaces: Mutex::default(),
+        keep_workspaces: keep,
+        workspaces: Mutex::new(vec![workspace]),
     })
 }
+
+/// Bytes of an entry besides its measured arrays: the entry, its strings
+/// and its response (warnings), rounded up.
+const ENTRY_OVERHEAD: usize = 4096;
 
 fn warning(w: &BindWarning) -> Warning {
     let (code, segment) = match w {
@@ -222,6 +289,7 @@ fn warning(w: &BindWarning) -> Warning {
         BindWarning::IslandsRemoved { .. } => ("islands_removed", None),
         BindWarning::DegenerateCutFaces { .. } => ("degenerate_cut_faces", None),
         BindWarning::FacesSplit { .. } => ("faces_split", None),
+        BindWarning::CurvesTouch { .. } => ("curves_touch", None),
         BindWarning::SegmentDetour { segment, t, position, path_length, segment_length } => (
             "segment_detour",
             Some(SegmentAt {

@@ -40,7 +40,10 @@ pub struct Entry {
     pub projection_points: Vec<[f64; 3]>,
     /// The answer to the post that computed it (`cached` false).
     pub response: BindingResponse,
+    /// Bytes the entry holds, measured when it was built (counted against the cache).
     pub size_bytes: u64,
+    /// Workspaces kept for reuse (budgeted in `size_bytes`): one per solve thread.
+    pub keep_workspaces: usize,
     /// Workspaces of finished frames, reused by the next ones.
     pub workspaces: Mutex<Vec<Workspace>>,
 }
@@ -52,26 +55,24 @@ impl Entry {
         reused.unwrap_or_else(|| self.binding.workspace())
     }
 
-    /// Returns a workspace for later frames (at most `keep` are kept).
-    pub fn give_workspace(&self, ws: Workspace, keep: usize) {
+    /// Returns a workspace for later frames (at most `keep_workspaces` are kept).
+    pub fn give_workspace(&self, ws: Workspace) {
         let mut pool = self.workspaces.lock().unwrap_or_else(|e| e.into_inner());
-        if pool.len() < keep {
+        if pool.len() < self.keep_workspaces {
             pool.push(ws);
         }
     }
 }
 
-/// Estimated bytes of a binding: factor nonzeros × 12 (value and row
-/// index), cut halfedges × 64 (connectivity, corner sources, per-corner
-/// right-hand sides, face Laplacians), mesh vertices × 96 (surface points,
-/// projection points, vertex maps, the closest-point tree) and the blend
-/// shapes' offsets × 24.
-pub fn estimate_bytes(binding: &Binding, shape_offsets: usize) -> u64 {
-    let s = binding.stats();
-    (s.factor_nonzeros as u64) * 12
-        + (s.cut_halfedges as u64) * 64
-        + (s.mesh_vertices as u64) * 96
-        + (shape_offsets as u64) * 24
+/// `cache_too_small`: a binding of `bytes` (measured, or predicted "at least")
+/// does not fit in a cache of `capacity`.
+pub fn too_small(bytes: u64, capacity: u64, how: &str) -> ServiceError {
+    ServiceError::new(
+        Code::CacheTooSmall,
+        format!(
+            "the binding needs {how} {bytes} bytes but the whole cache holds {capacity} (CURVENET_CACHE_BYTES / --cache-bytes)"
+        ),
+    )
 }
 
 /// The cache: moka's future cache weighed in KiB (its weigher is u32).
@@ -135,13 +136,7 @@ impl BindingCache {
         let value = entry.into_value();
         if value.size_bytes > self.capacity_bytes {
             self.cache.invalidate(&key).await;
-            return Err(ServiceError::new(
-                Code::CacheTooSmall,
-                format!(
-                    "the binding needs about {} bytes but the whole cache holds {} (CURVENET_CACHE_BYTES / --cache-bytes)",
-                    value.size_bytes, self.capacity_bytes
-                ),
-            ));
+            return Err(too_small(value.size_bytes, self.capacity_bytes, "about"));
         }
         Ok((value, !fresh))
     }

@@ -36,12 +36,17 @@ pub enum Code {
     DegeneratePose,
     /// A feature the core does not support yet.
     Unsupported,
+    /// The request is within the body limit but would cost more work or
+    /// memory than a configured limit allows (names the element and the flag).
+    LimitExceeded,
     /// The binding id is not (or no longer) cached: post the binding again.
     UnknownBinding,
     /// The frame's `topology_hash` is not the binding's topology.
     TopologyChanged,
     /// The body is larger than the server's limit.
     PayloadTooLarge,
+    /// The body stalled or arrived slower than the minimum rate.
+    RequestTimeout,
     /// A binding larger than the whole cache.
     CacheTooSmall,
     /// Missing or wrong bearer token.
@@ -66,7 +71,7 @@ pub enum Code {
 
 impl Code {
     /// Every code, in the order of the table in server/README.md.
-    pub const ALL: [Code; 26] = [
+    pub const ALL: [Code; 28] = [
         Code::MalformedJson,
         Code::MalformedBinary,
         Code::UnsupportedMediaType,
@@ -80,9 +85,11 @@ impl Code {
         Code::BindingFailed,
         Code::DegeneratePose,
         Code::Unsupported,
+        Code::LimitExceeded,
         Code::UnknownBinding,
         Code::TopologyChanged,
         Code::PayloadTooLarge,
+        Code::RequestTimeout,
         Code::CacheTooSmall,
         Code::Unauthorized,
         Code::PathForbidden,
@@ -110,9 +117,11 @@ impl Code {
             Code::BindingFailed => "binding_failed",
             Code::DegeneratePose => "degenerate_pose",
             Code::Unsupported => "unsupported",
+            Code::LimitExceeded => "limit_exceeded",
             Code::UnknownBinding => "unknown_binding",
             Code::TopologyChanged => "topology_changed",
             Code::PayloadTooLarge => "payload_too_large",
+            Code::RequestTimeout => "request_timeout",
             Code::CacheTooSmall => "cache_too_small",
             Code::Unauthorized => "unauthorized",
             Code::PathForbidden => "path_forbidden",
@@ -136,6 +145,7 @@ impl Code {
             Code::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Code::TopologyChanged => StatusCode::CONFLICT,
             Code::PayloadTooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+            Code::RequestTimeout => StatusCode::REQUEST_TIMEOUT,
             Code::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Code::CountMismatch
             | Code::NonFinite
@@ -147,6 +157,7 @@ impl Code {
             | Code::BindingFailed
             | Code::DegeneratePose
             | Code::Unsupported
+            | Code::LimitExceeded
             | Code::BakeFailed => StatusCode::UNPROCESSABLE_ENTITY,
             Code::CacheTooSmall => StatusCode::INSUFFICIENT_STORAGE,
             Code::Saturated | Code::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
@@ -164,11 +175,14 @@ pub const RETRY_AFTER_S: u64 = 1;
 pub struct ServiceError {
     pub code: Code,
     pub message: String,
+    /// The core stopped because the service raised its cancel flag
+    /// (`curvenet_core::Error::Cancelled`); the caller knows why.
+    pub(crate) cancelled: bool,
 }
 
 impl ServiceError {
     pub fn new(code: Code, message: impl Into<String>) -> Self {
-        Self { code, message: message.into() }
+        Self { code, message: message.into(), cancelled: false }
     }
 
     pub fn internal(message: impl Into<String>) -> Self {
@@ -219,7 +233,7 @@ impl ServiceError {
             | E::CurvesCross { .. }
             | E::SegmentCrossesFaceBoundary { .. }
             | E::UntouchedComponent { .. }
-            | E::NotPositiveDefinite
+            | E::NotPositiveDefinite { .. }
             | E::DegenerateSurfaceFace { .. } => Code::BindingFailed,
             E::SegmentCollapsed { .. } | E::DegenerateIntersection { .. } if phase == Phase::Frame => {
                 Code::DegeneratePose
@@ -233,9 +247,12 @@ impl ServiceError {
             E::InvalidParameter { .. } => Code::InvalidParameter,
             E::Unsupported { .. } => Code::Unsupported,
             E::Internal { .. } => Code::Internal,
+            // The service raises the flag itself and maps the reason (routes.rs, jobs.rs).
+            E::Cancelled { .. } => Code::Unavailable,
             _ => Code::InvalidParameter,
         };
-        Self::new(code, e.to_string())
+        let cancelled = matches!(e, E::Cancelled { .. });
+        Self { cancelled, ..Self::new(code, e.to_string()) }
     }
 }
 
@@ -273,6 +290,10 @@ impl IntoResponse for ServiceError {
         }
         if self.code == Code::Unauthorized {
             headers.insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        }
+        if self.code == Code::RequestTimeout {
+            // The rest of the body is not read: the connection cannot be reused.
+            headers.insert(header::CONNECTION, HeaderValue::from_static("close"));
         }
         response
     }

@@ -7,12 +7,9 @@ use std::time::Instant;
 use curvenet_core::FrameInput;
 use curvenet_schema::wire::{BlendShapeMode, FrameRequest, FrameResponse};
 
-use crate::binding::non_finite;
+use crate::binding::{MAX_WEIGHT, check_points};
 use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
-
-/// Workspaces kept per binding for reuse (one per concurrently solving thread is enough).
-const KEEP_WORKSPACES: usize = 16;
 
 /// A frame's input, in f64, whatever its wire form.
 #[derive(Debug, Clone, Default)]
@@ -94,7 +91,7 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
                         ),
                     ));
                 }
-                non_finite(pool, &format!("posed[{k}]"))?;
+                check_points(pool, &format!("posed[{k}]"))?;
             }
         }
     }
@@ -105,7 +102,7 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
                 format!("rest has {} points, but the mesh has {} vertices", rest.len(), b.n_vertices()),
             ));
         }
-        non_finite(rest, "rest")?;
+        check_points(rest, "rest")?;
     }
     if let Some(w) = &frame.weights {
         if w.len() != entry.n_shapes {
@@ -120,6 +117,12 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         }
         if let Some(i) = w.iter().position(|x| !x.is_finite()) {
             return Err(ServiceError::new(Code::NonFinite, format!("blend_shape_weights[{i}] is {}", w[i])));
+        }
+        if let Some(i) = w.iter().position(|x| x.abs() > MAX_WEIGHT) {
+            return Err(ServiceError::new(
+                Code::InvalidParameter,
+                format!("blend_shape_weights[{i}] is {}, larger than {MAX_WEIGHT:e} in magnitude", w[i]),
+            ));
         }
     }
     Ok(())
@@ -151,11 +154,37 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = (frame.gradients || after.is_some()).then(|| vec![[0.0; 9]; n]);
     let mut ws = entry.take_workspace();
-    let r = b.deform(&FrameInput { posed: &posed, rest }, &mut ws, &mut points, gradients.as_deref_mut());
-    entry.give_workspace(ws, KEEP_WORKSPACES);
+    let r = b.deform(
+        &FrameInput { posed: &posed, rest, ..Default::default() },
+        &mut ws,
+        &mut points,
+        gradients.as_deref_mut(),
+    );
+    entry.give_workspace(ws);
     r.map_err(|e| ServiceError::core(e, Phase::Frame))?;
     if let (Some((s, w)), Some(g)) = (after, gradients.as_deref()) {
         s.add_deformed(w, g, &mut points).map_err(|e| ServiceError::core(e, Phase::Frame))?;
     }
-    Ok(Solved { points, gradients: gradients.filter(|_| frame.gradients), solve_ms: t0.elapsed().as_secs_f64() * 1e3 })
+    let gradients = gradients.filter(|_| frame.gradients);
+    finite_in_f32(&points, "points")?;
+    if let Some(g) = &gradients {
+        finite_in_f32(g, "gradients")?;
+    }
+    Ok(Solved { points, gradients, solve_ms: t0.elapsed().as_secs_f64() * 1e3 })
+}
+
+/// Refuses a result that is not finite once sent as f32 (a pose or weights
+/// extreme enough to overflow): `non_finite`, naming the first bad vertex.
+fn finite_in_f32<const N: usize>(values: &[[f64; N]], what: &str) -> Result<(), ServiceError> {
+    let bad = |x: &f64| !(x.is_finite() && x.abs() <= f32::MAX as f64);
+    match values.iter().position(|v| v.iter().any(bad)) {
+        None => Ok(()),
+        Some(i) => Err(ServiceError::new(
+            Code::NonFinite,
+            format!(
+                "the frame's result is not finite: {what}[{i}] = {:?} overflows f32 (the pose, rest pose or blend-shape weights are too extreme)",
+                values[i]
+            ),
+        )),
+    }
 }

@@ -14,72 +14,42 @@
 //! ```
 //!
 //! `app(state)` is the whole router, so tests drive it with `oneshot`;
-//! `run(listener, state, shutdown)` serves it with graceful shutdown.
+//! `run(listener, state, shutdown)` (serve.rs) serves it over TCP with the
+//! connection limits and timeouts and graceful shutdown with a deadline;
+//! limits.rs predicts and bounds a binding's work, jobs.rs cancels it.
 
 mod bake;
 mod binary;
 mod binding;
+mod bounded;
 mod cache;
 mod error;
 mod frames;
+#[cfg(test)]
+mod fuzz_tests;
+mod jobs;
+mod limits;
 mod metrics;
 mod openapi;
 mod routes;
+mod serve;
 mod state;
 mod viewer;
 
 pub use bake::{BakeFailure, BakeJob, Baker};
 pub use error::{Code, ServiceError};
+pub use limits::{
+    DEFAULT_MAX_BINDING_TIME, DEFAULT_MAX_SAMPLE_DENSITY, DEFAULT_MAX_SEGMENTS_PER_VERTEX, MIN_SEGMENT_ALLOWANCE,
+    WorkLimits,
+};
 pub use openapi::openapi;
 pub use routes::app;
-pub use state::{AppState, Config, DEFAULT_BODY_LIMIT, DEFAULT_CACHE_BYTES, DEFAULT_DRAIN_TIMEOUT, DEFAULT_MAX_SOLVES};
+pub use serve::{
+    ConnectionLimits, DEFAULT_BODY_MIN_RATE, DEFAULT_BODY_TIMEOUT, DEFAULT_HEADER_TIMEOUT, DEFAULT_IDLE_TIMEOUT,
+    DEFAULT_MAX_CONNECTIONS, Drained, run,
+};
+pub use state::{
+    AppState, Config, DEFAULT_BODY_LIMIT, DEFAULT_CACHE_BYTES, DEFAULT_DRAIN_TIMEOUT, DEFAULT_MAX_BATCH_BYTES,
+    DEFAULT_MAX_SOLVES, DEFAULT_QUEUE_TIMEOUT,
+};
 pub use viewer::{FrameSource, ViewerStage};
-
-use std::future::Future;
-use std::sync::Arc;
-
-use tokio::net::TcpListener;
-
-/// Serves `app(state)` on `listener` until `shutdown` resolves, then stops
-/// accepting connections and lets requests in flight finish for at most the
-/// configured drain timeout.
-pub async fn run(
-    listener: TcpListener,
-    state: AppState,
-    shutdown: impl Future<Output = ()> + Send + 'static,
-) -> std::io::Result<()> {
-    let drain = state.config().drain_timeout;
-    let started = Arc::new(tokio::sync::Notify::new());
-    let signal = {
-        let state = state.clone();
-        let started = started.clone();
-        async move {
-            shutdown.await;
-            tracing::info!(drain_timeout_s = drain.as_secs_f64(), "shutting down: draining requests in flight");
-            state.set_draining();
-            started.notify_one();
-        }
-    };
-    let upkeep = {
-        let metrics = state.inner.metrics.clone();
-        tokio::spawn(async move {
-            let mut every = tokio::time::interval(std::time::Duration::from_secs(5));
-            loop {
-                every.tick().await;
-                metrics.upkeep();
-            }
-        })
-    };
-    let server = axum::serve(listener, app(state)).with_graceful_shutdown(signal);
-    let server = std::future::IntoFuture::into_future(server);
-    tokio::pin!(server);
-    let result = tokio::select! {
-        r = &mut server => r,
-        _ = async { started.notified().await; tokio::time::sleep(drain).await } => {
-            tracing::warn!("drain timeout reached; closing the connections still open");
-            Ok(())
-        }
-    };
-    upkeep.abort();
-    result
-}

@@ -23,7 +23,10 @@ pub struct Metrics {
     pub cache_capacity_bytes: Gauge,
     pub bindings_computed: Counter,
     pub saturated: Counter,
+    pub connections_refused: Counter,
+    pub bindings_cancelled: Counter,
     pub solves_in_flight: Gauge,
+    pub bindings_running: Gauge,
     pub frames_solved: Counter,
     pub solve_seconds: Histogram,
     pub bind_seconds: Histogram,
@@ -73,11 +76,20 @@ impl Metrics {
                 "curvenet_saturated_total",
                 "requests refused with 503 because every solve permit was taken",
             ),
+            connections_refused: counter(
+                "curvenet_connections_refused_total",
+                "connections answered 503 and closed because --max-connections were open",
+            ),
+            bindings_cancelled: counter(
+                "curvenet_bindings_cancelled_total",
+                "bindings stopped before their end (client gone, time limit, shutdown)",
+            ),
             solves_in_flight: gauge(
                 "curvenet_solves_in_flight",
                 None,
                 "solve permits held (running or queued for a core)",
             ),
+            bindings_running: gauge("curvenet_bindings_running", None, "bindings being computed now"),
             frames_solved: counter("curvenet_frames_solved_total", "frames deformed"),
             solve_seconds: histogram(
                 "curvenet_frame_solve_seconds",

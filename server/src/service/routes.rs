@@ -3,12 +3,12 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use axum::Json;
 use axum::Router;
 use axum::body::{Body, Bytes};
-use axum::extract::{DefaultBodyLimit, MatchedPath, Path, Request, State};
+use axum::extract::{DefaultBodyLimit, FromRequestParts, MatchedPath, Path, Request, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::middleware::{Next, from_fn_with_state};
 use axum::response::{IntoResponse, Response};
@@ -130,7 +130,11 @@ impl MakeRequestId for MakeId {
 async fn auth(State(state): State<AppState>, req: Request, next: Next) -> Response {
     if let Some(expected) = state.inner.token_hash {
         let given = req.headers().get(header::AUTHORIZATION).and_then(|v| v.to_str().ok());
-        let token = given.and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")));
+        // The scheme is case-insensitive (RFC 9110 §11.1): `Bearer`, `bearer`, `BEARER`.
+        let token = given.and_then(|v| {
+            let (scheme, token) = v.trim_start().split_once(' ')?;
+            scheme.eq_ignore_ascii_case("bearer").then_some(token)
+        });
         // Hashes compare in constant time.
         if token.is_none_or(|t| blake3::hash(t.trim().as_bytes()) != expected) {
             let message = if given.is_none() {
@@ -171,13 +175,70 @@ async fn content_length_limit(State(state): State<AppState>, req: Request, next:
     next.run(req).await
 }
 
-/// Reads the whole body, at most the configured limit (413 beyond).
+/// Reads the whole body: at most the configured limit (413 beyond), and
+/// never stalling longer than the body timeout nor, once that much time has
+/// passed, arriving slower on average than the minimum rate (408 and the
+/// connection closed). The deadline for the next bytes is
+/// `min(last bytes + timeout, start + max(timeout, received / min_rate))`.
 pub(crate) async fn read_body(state: &AppState, body: Body) -> Result<Bytes, ServiceError> {
     let limit = state.config().body_limit;
-    match http_body_util::Limited::new(body, limit).collect().await {
-        Ok(c) => Ok(c.to_bytes()),
-        Err(e) if e.downcast_ref::<http_body_util::LengthLimitError>().is_some() => Err(too_large(limit)),
-        Err(e) => Err(ServiceError::new(Code::MalformedJson, format!("the body could not be read: {e}"))),
+    let c = state.config().connections;
+    let start = tokio::time::Instant::now();
+    let mut last = start;
+    let mut body = http_body_util::Limited::new(body, limit);
+    let mut buf: Vec<u8> = Vec::new();
+    loop {
+        let rate = c.body_min_rate.max(1) as f64;
+        let allowance = c.body_timeout.max(Duration::from_secs_f64((buf.len() as f64 / rate).min(1e9)));
+        let deadline = (last + c.body_timeout).min(start + allowance);
+        match tokio::time::timeout_at(deadline, body.frame()).await {
+            Err(_) => {
+                return Err(ServiceError::new(
+                    Code::RequestTimeout,
+                    format!(
+                        "the request body stalled or arrived too slowly: {} bytes in {:.1} s (a body may not stall for \
+                         {} s, nor arrive slower than {} bytes/s after that: --body-timeout, --body-min-rate)",
+                        buf.len(),
+                        start.elapsed().as_secs_f64(),
+                        c.body_timeout.as_secs_f64(),
+                        c.body_min_rate
+                    ),
+                ));
+            }
+            Ok(None) => return Ok(Bytes::from(buf)),
+            Ok(Some(Ok(frame))) => {
+                if let Ok(data) = frame.into_data() {
+                    if !data.is_empty() {
+                        last = tokio::time::Instant::now();
+                    }
+                    buf.extend_from_slice(&data);
+                }
+            }
+            Ok(Some(Err(e))) if e.downcast_ref::<http_body_util::LengthLimitError>().is_some() => {
+                return Err(too_large(limit));
+            }
+            Ok(Some(Err(e))) => {
+                return Err(ServiceError::new(Code::MalformedJson, format!("the body could not be read: {e}")));
+            }
+        }
+    }
+}
+
+/// Path parameters whose parse failure (`/v1/viewer/stages/-1`) is a JSON
+/// `not_found` like every other error, not axum's plain-text rejection.
+pub(crate) struct Params<T>(pub T);
+
+impl<S: Send + Sync, T: serde::de::DeserializeOwned + Send> FromRequestParts<S> for Params<T> {
+    type Rejection = ServiceError;
+
+    async fn from_request_parts(parts: &mut axum::http::request::Parts, state: &S) -> Result<Self, ServiceError> {
+        match Path::<T>::from_request_parts(parts, state).await {
+            Ok(Path(t)) => Ok(Params(t)),
+            Err(e) => Err(ServiceError::new(
+                Code::NotFound,
+                format!("{} does not exist: {}", parts.uri.path(), e.body_text()),
+            )),
+        }
     }
 }
 
@@ -219,15 +280,25 @@ pub(crate) async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, Ser
     state.inner.cache.get(&key).await.ok_or_else(|| ServiceError::unknown_binding(id))
 }
 
-/// Validates, hashes and binds (through the cache). Returns the entry and
-/// whether it was cached.
+/// Validates, checks the work limits, hashes and binds (through the
+/// cache). Returns the entry and whether it was cached.
+///
+/// The computation is a cancellable [`crate::jobs::Job`]: dropped with this
+/// future (the client went away), stopped at the binding time limit or at
+/// the drain deadline.
 pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<Entry>, bool), ServiceError> {
     let req = Arc::new(req);
+    let limits = state.config().work;
+    let capacity = state.config().cache_bytes;
     let (key, topology, options) = blocking({
         let req = req.clone();
         move || {
             validate(&req)?;
             let options = EffectiveOptions::of(&req)?;
+            let prediction = crate::binding::predict(&req, &limits)?;
+            if prediction.bytes_at_least > capacity {
+                return Err(crate::cache::too_small(prediction.bytes_at_least, capacity, "at least"));
+            }
             Ok((binding_key(&req, &options), topology_key(&req), options))
         }
     })
@@ -239,13 +310,29 @@ pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<E
         .inner
         .cache
         .get_or_compute(key, async move {
-            let permit = st.permits(1)?;
+            let permit = st.permit().await?;
             let t = Instant::now();
-            let entry = blocking(move || {
+            let job = st.inner.jobs.start();
+            let cancel = job.cancel_flag();
+            let keep = st.solve_threads();
+            let work = blocking(move || {
                 let _permit = permit;
-                build(&req, key, topology, options)
-            })
-            .await?;
+                build(&req, key, topology, options, cancel, keep)
+            });
+            tokio::pin!(work);
+            let result = tokio::select! {
+                r = &mut work => r,
+                () = tokio::time::sleep(limits.max_binding_time) => {
+                    // Raise the flag, then wait for the core to notice it.
+                    job.handle().cancel(crate::jobs::Reason::TimeLimit);
+                    work.await
+                }
+            };
+            let reason = job.finish();
+            let entry = match result {
+                Err(e) if e.cancelled => return Err(cancelled(reason, &limits, t.elapsed())),
+                other => other?,
+            };
             st.inner.metrics.bind_seconds.record(t.elapsed().as_secs_f64());
             tracing::info!(binding_id = %entry.id, bytes = entry.size_bytes, ms = t.elapsed().as_secs_f64() * 1e3, "bound");
             Ok(entry)
@@ -257,6 +344,29 @@ pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<E
         span.record("factor_ms", entry.response.timings.factor_ms);
     }
     Ok((entry, cached))
+}
+
+/// The answer to a binding the service stopped.
+fn cancelled(reason: crate::jobs::Reason, limits: &crate::limits::WorkLimits, after: Duration) -> ServiceError {
+    use crate::jobs::Reason;
+    match reason {
+        Reason::TimeLimit => ServiceError::new(
+            Code::LimitExceeded,
+            format!(
+                "the binding was still computing after {:.1} s, this server's limit (--max-binding-seconds, \
+                 CURVENET_MAX_BINDING_SECONDS); lower the curvenets' sample_density",
+                limits.max_binding_time.as_secs_f64()
+            ),
+        ),
+        Reason::Shutdown => ServiceError::new(
+            Code::Unavailable,
+            format!("the server is shutting down and stopped the binding after {:.1} s; retry", after.as_secs_f64()),
+        ),
+        // Nobody reads this answer (the client is gone); logged at debug.
+        Reason::Abandoned | Reason::None => {
+            ServiceError::new(Code::Unavailable, "the binding was cancelled: its client disconnected")
+        }
+    }
 }
 
 fn binding_response(entry: &Entry, cached: bool) -> BindingResponse {
@@ -288,6 +398,8 @@ pub(crate) async fn metrics(State(state): State<AppState>) -> Response {
     let inner = &state.inner;
     inner.cache.refresh_gauges().await;
     inner.metrics.solves_in_flight.set(state.solves_in_flight() as f64);
+    inner.metrics.bindings_running.set(inner.jobs.len() as f64);
+    inner.metrics.bindings_cancelled.absolute(inner.jobs.cancelled());
     ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render())
         .into_response()
 }
@@ -330,7 +442,7 @@ pub(crate) async fn create_binding(
     ))]
 pub(crate) async fn get_binding(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
 ) -> Result<Json<BindingResponse>, ServiceError> {
     let entry = lookup(&state, &id).await?;
     Ok(Json(binding_response(&entry, true)))
@@ -345,7 +457,7 @@ pub(crate) async fn get_binding(
     ))]
 pub(crate) async fn delete_binding(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
 ) -> Result<StatusCode, ServiceError> {
     let key = parse_key(&id).ok_or_else(|| ServiceError::unknown_binding(&id))?;
     if state.inner.cache.remove(&key).await {
@@ -377,7 +489,7 @@ pub(crate) async fn delete_binding(
     ))]
 pub(crate) async fn post_frames(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ServiceError> {
@@ -403,7 +515,7 @@ pub(crate) async fn post_frames(
     ))]
 pub(crate) async fn post_frames_batch(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, ServiceError> {
@@ -420,19 +532,30 @@ async fn solve_frames(
     let form = form(&headers, true)?;
     let entry = lookup(&state, &id).await?;
     let bytes = read_body(&state, body).await?;
-    // A batch may occupy every solve thread; a frame takes one.
-    let wanted = if batch { state.solve_threads() } else { 1 };
-    let permit = state.permits(wanted.min(state.config().max_solves).max(1) as u32)?;
+    // Every request takes one permit, waiting in line for it (fairly) when
+    // all are taken; a batch then also takes whatever permits are free right
+    // now, up to one per solve thread, and solves its frames that many at once.
+    let permit = state.permit().await?;
+    let spare = if batch { state.spare_permits(state.solve_threads().saturating_sub(1) as u32) } else { None };
+    let parallel = 1 + spare.as_ref().map_or(0, |p| p.num_permits());
     let metrics = state.inner.metrics.clone();
+    let max_batch_bytes = state.config().max_batch_bytes;
     let (out, n, solve_ms) = state
         .on_pool(move || {
-            let _permit = permit;
-            let frames = parse_frames(&entry, form, &bytes, batch)?;
+            let _permits = (permit, spare);
+            let frames = parse_frames(&entry, form, &bytes, batch, max_batch_bytes)?;
             let solved: Vec<Solved> = if batch {
+                check_batch_size(&entry, &frames, max_batch_bytes)?;
+                let chunk = frames.len().div_ceil(parallel).max(1);
                 let results: Vec<Result<Solved, ServiceError>> = frames
-                    .par_iter()
+                    .par_chunks(chunk)
                     .enumerate()
-                    .map(|(i, f)| frames::solve(&entry, f).map_err(|e| e.context(&format!("frames[{i}]"))))
+                    .flat_map_iter(|(c, part)| {
+                        let entry = &entry;
+                        part.iter().enumerate().map(move |(j, f)| {
+                            frames::solve(entry, f).map_err(|e| e.context(&format!("frames[{}]", c * chunk + j)))
+                        })
+                    })
                     .collect();
                 results.into_iter().collect::<Result<_, _>>()?
             } else {
@@ -465,13 +588,55 @@ async fn solve_frames(
     })
 }
 
+/// Refuses a batch whose answer would hold more than `max` bytes of f32
+/// data (frames × vertices × 12, 48 with gradients) before solving it: the
+/// answer, unlike the request, is not bounded by the body limit.
+fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64) -> Result<(), ServiceError> {
+    let v = entry.binding.n_vertices() as u64;
+    let bytes: u64 = frames.iter().map(|f| v * if f.gradients { 48 } else { 12 }).sum();
+    if bytes > max {
+        return Err(ServiceError::new(
+            Code::LimitExceeded,
+            format!(
+                "the batch's answer would hold {bytes} bytes ({} frames of {v} vertices), more than this server's \
+                 limit of {max} (--max-batch-bytes, CURVENET_MAX_BATCH_BYTES); split it",
+                frames.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// Parses and validates the frames of a request (on the solve pool).
-fn parse_frames(entry: &Entry, form: Form, bytes: &[u8], batch: bool) -> Result<Vec<Frame>, ServiceError> {
-    let mut frames: Vec<Frame> = match form {
-        Form::Json if batch => parse_json::<FrameBatchRequest>(bytes)?.frames.into_iter().map(Frame::from).collect(),
+fn parse_frames(
+    entry: &Entry,
+    form: Form,
+    bytes: &[u8],
+    batch: bool,
+    max_batch_bytes: u64,
+) -> Result<Vec<Frame>, ServiceError> {
+    let vertices = entry.binding.n_vertices();
+    let max_frames = crate::bounded::max_frames(max_batch_bytes, vertices);
+    let frames: Vec<Frame> = match form {
+        Form::Json if batch => match crate::bounded::frames::<FrameRequest>(bytes, max_frames) {
+            Ok(f) => f.into_iter().map(Frame::from).collect(),
+            Err(crate::bounded::BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, vertices)),
+            Err(crate::bounded::BatchError::Malformed(e)) => {
+                return Err(ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")));
+            }
+            Err(crate::bounded::BatchError::NotBatch) => {
+                return Err(ServiceError::new(
+                    Code::MalformedJson,
+                    "the JSON body is invalid: frames:batch takes {\"frames\": [...]} and nothing else",
+                ));
+            }
+        },
         Form::Json => vec![parse_json::<FrameRequest>(bytes)?.into()],
         Form::Binary => {
-            let (frames, is_batch) = binary::parse(bytes)?;
+            let pools: Vec<usize> =
+                (0..entry.binding.n_curvenets()).map(|k| entry.binding.n_control_points(k)).collect();
+            let expected = binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes, max_frames };
+            let (frames, is_batch) = binary::parse(bytes, &expected)?;
             if is_batch != batch {
                 return Err(ServiceError::new(
                     Code::MalformedBinary,
@@ -485,12 +650,8 @@ fn parse_frames(entry: &Entry, form: Form, bytes: &[u8], batch: bool) -> Result<
             frames
         }
     };
-    for (i, f) in frames.iter_mut().enumerate() {
-        let r = match form {
-            Form::Binary => binary::fit_posed(f, entry.binding.n_curvenets()).and_then(|()| frames::validate(entry, f)),
-            Form::Json => frames::validate(entry, f),
-        };
-        r.map_err(|e| if batch { e.context(&format!("frames[{i}]")) } else { e })?;
+    for (i, f) in frames.iter().enumerate() {
+        frames::validate(entry, f).map_err(|e| if batch { e.context(&format!("frames[{i}]")) } else { e })?;
     }
     Ok(frames)
 }
@@ -516,14 +677,14 @@ pub(crate) async fn deform(
         Ok(r) => r,
         Err(e) => return Err(e.context("binding")),
     };
-    let permit = state.permits(1)?;
+    let permit = state.permit().await?;
     let frame = Frame::from(req.frame);
     let metrics = state.inner.metrics.clone();
     let solved = state
         .on_pool(move || {
             let _permit = permit;
             frames::validate(&entry, &frame).map_err(|e| e.context("frame"))?;
-            let s = frames::solve(&entry, &frame)?;
+            let s = frames::solve(&entry, &frame).map_err(|e| e.context("frame"))?;
             metrics.solve_seconds.record(s.solve_ms / 1e3);
             metrics.frames_solved.increment(1);
             Ok(DeformResponse { binding_id: entry.id.clone(), cached, frame: s.into_response() })
@@ -557,12 +718,13 @@ pub(crate) async fn bake(
             stage: check_stage(&req.stage, &roots)?,
             output: check_output(&req.output, &roots)?,
             frames: req.frames,
+            roots,
         })
     })
     .await?;
     let baker =
         state.inner.baker.clone().ok_or_else(|| ServiceError::internal("this server was started without a baker"))?;
-    let permit = state.permits(1)?;
+    let permit = state.permit().await?;
     let t = Instant::now();
     let job2 = job.clone();
     blocking(move || {
@@ -570,6 +732,7 @@ pub(crate) async fn bake(
         baker(&job2).map_err(|f| match f {
             BakeFailure::Input(m) => ServiceError::new(Code::BakeFailed, m),
             BakeFailure::Retry(m) => ServiceError::new(Code::Unavailable, m),
+            BakeFailure::Forbidden(m) => ServiceError::new(Code::PathForbidden, m),
         })
     })
     .await?;

@@ -10,9 +10,11 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use crate::bake::Baker;
 use crate::cache::BindingCache;
 use crate::error::{Code, ServiceError};
+use crate::jobs::Jobs;
+use crate::limits::WorkLimits;
 use crate::metrics::Metrics;
 
-/// Default cache size: 2 GiB of bindings (the 94k-vertex hand weighs ~60 MB).
+/// Default cache size: 2 GiB of bindings (measured: the 22k-vertex hand holds 77 MB, the 94k one about 300 MB).
 pub const DEFAULT_CACHE_BYTES: u64 = 2 << 30;
 /// Default body limit: 256 MiB (a JSON batch of 100k-vertex frames is large).
 pub const DEFAULT_BODY_LIMIT: usize = 256 << 20;
@@ -20,6 +22,12 @@ pub const DEFAULT_BODY_LIMIT: usize = 256 << 20;
 pub const DEFAULT_MAX_SOLVES: usize = 64;
 /// Default drain timeout at shutdown.
 pub const DEFAULT_DRAIN_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default longest wait for a solve permit when all are taken.
+pub const DEFAULT_QUEUE_TIMEOUT: Duration = Duration::from_secs(2);
+/// Requests that may wait in line for a solve permit, per permit.
+pub const MAX_LINE_PER_SOLVE: usize = 4;
+/// Default largest answer of a batch, in bytes of f32 data.
+pub const DEFAULT_MAX_BATCH_BYTES: u64 = 256 << 20;
 
 /// Everything `curvenet serve` can be configured with.
 #[derive(Debug, Clone)]
@@ -39,6 +47,14 @@ pub struct Config {
     pub token: Option<String>,
     /// Directories `POST /v1/bake` may read from and write to.
     pub bake_roots: Vec<PathBuf>,
+    /// Limits on the work of one binding (density, segments, time).
+    pub work: WorkLimits,
+    /// Longest a request waits, in line, for a solve permit before 503.
+    pub queue_timeout: Duration,
+    /// Largest answer of one batch: frames × vertices × 12 bytes (48 with gradients).
+    pub max_batch_bytes: u64,
+    /// Connection limits and timeouts (headers, bodies, idle keep-alive).
+    pub connections: crate::serve::ConnectionLimits,
 }
 
 impl Default for Config {
@@ -51,6 +67,10 @@ impl Default for Config {
             drain_timeout: DEFAULT_DRAIN_TIMEOUT,
             token: None,
             bake_roots: Vec::new(),
+            work: WorkLimits::default(),
+            queue_timeout: DEFAULT_QUEUE_TIMEOUT,
+            max_batch_bytes: DEFAULT_MAX_BATCH_BYTES,
+            connections: Default::default(),
         }
     }
 }
@@ -72,6 +92,10 @@ pub(crate) struct Inner {
     pub metrics: Arc<Metrics>,
     pub token_hash: Option<blake3::Hash>,
     pub draining: AtomicBool,
+    /// Bindings being computed, cancellable.
+    pub jobs: Arc<Jobs>,
+    /// Requests waiting in line for a solve permit.
+    pub waiting: std::sync::atomic::AtomicUsize,
     /// Stages opened in the viewer (`serve --open-stage`), by index.
     pub viewer_stages: std::sync::RwLock<Vec<Arc<crate::viewer::ViewerStage>>>,
 }
@@ -106,6 +130,8 @@ impl AppState {
                 pool,
                 metrics,
                 draining: AtomicBool::new(false),
+                jobs: Arc::default(),
+                waiting: Default::default(),
                 viewer_stages: Default::default(),
             }),
         })
@@ -129,21 +155,41 @@ impl AppState {
         self.inner.config.max_solves.min(Semaphore::MAX_PERMITS).saturating_sub(self.inner.permits.available_permits())
     }
 
-    /// Takes `n` solve permits or answers `saturated`.
-    pub(crate) fn permits(&self, n: u32) -> Result<OwnedSemaphorePermit, ServiceError> {
-        match self.inner.permits.clone().try_acquire_many_owned(n) {
-            Ok(p) => Ok(p),
-            Err(_) => {
-                self.inner.metrics.saturated.increment(1);
-                Err(ServiceError::new(
-                    Code::Saturated,
-                    format!(
-                        "the server is solving at its limit ({} solves at once); retry after the Retry-After delay",
-                        self.inner.config.max_solves
-                    ),
-                ))
-            }
+    /// Takes one solve permit. When every permit is taken the request waits
+    /// in line (first come, first served: tokio's semaphore is fair) for at
+    /// most the queue timeout, with at most [`MAX_LINE_PER_SOLVE`] ×
+    /// `max_solves` requests in line; beyond either it answers `saturated`.
+    pub(crate) async fn permit(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
+        let permits = self.inner.permits.clone();
+        if let Ok(p) = permits.clone().try_acquire_owned() {
+            return Ok(p);
         }
+        let inner = &self.inner;
+        let line = inner.waiting.fetch_add(1, Ordering::SeqCst);
+        let waited = if line < MAX_LINE_PER_SOLVE * inner.config.max_solves && !inner.config.queue_timeout.is_zero() {
+            tokio::time::timeout(inner.config.queue_timeout, permits.acquire_owned()).await.ok().and_then(Result::ok)
+        } else {
+            None
+        };
+        inner.waiting.fetch_sub(1, Ordering::SeqCst);
+        waited.ok_or_else(|| self.saturated())
+    }
+
+    /// Up to `n` more permits, only those free right now (a batch's extra parallelism).
+    pub(crate) fn spare_permits(&self, n: u32) -> Option<OwnedSemaphorePermit> {
+        (1..=n).rev().find_map(|k| self.inner.permits.clone().try_acquire_many_owned(k).ok())
+    }
+
+    fn saturated(&self) -> ServiceError {
+        self.inner.metrics.saturated.increment(1);
+        ServiceError::new(
+            Code::Saturated,
+            format!(
+                "the server is solving at its limit ({} solves at once, and a full line waiting up to {:.1} s); retry after the Retry-After delay",
+                self.inner.config.max_solves,
+                self.inner.config.queue_timeout.as_secs_f64()
+            ),
+        )
     }
 
     /// Threads of the solve pool.

@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 
 use axum::Json;
 use axum::body::Body;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use curvenet_core::Binding;
@@ -35,6 +35,7 @@ use utoipa::ToSchema;
 use crate::cache::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
 use crate::frames::{self, Frame};
+use crate::routes::Params;
 use crate::state::{AppState, blocking};
 
 /// The page and its assets, built into the binary.
@@ -317,7 +318,7 @@ async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry
     ))]
 pub(crate) async fn stage(
     State(state): State<AppState>,
-    Path(index): Path<usize>,
+    Params(index): Params<usize>,
 ) -> Result<Json<ViewerStageBinding>, ServiceError> {
     let stage = state.viewer_stage(index)?;
     let (entry, cached) = stage_entry(&state, &stage).await?;
@@ -341,7 +342,7 @@ pub(crate) async fn stage(
     ))]
 pub(crate) async fn stage_frame(
     State(state): State<AppState>,
-    Path((index, k)): Path<(usize, usize)>,
+    Params((index, k)): Params<(usize, usize)>,
 ) -> Result<Json<ViewerFrame>, ServiceError> {
     let stage = state.viewer_stage(index)?;
     let Some(&time) = stage.times.get(k) else {
@@ -372,7 +373,7 @@ pub(crate) async fn stage_frame(
     ))]
 pub(crate) async fn viewer_data(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
 ) -> Result<Response, ServiceError> {
     let entry = crate::routes::lookup(&state, &id).await?;
     let bytes = blocking(move || serde_json::to_vec(&data(&entry)).map_err(ServiceError::internal_from)).await?;
@@ -392,7 +393,7 @@ pub(crate) async fn viewer_data(
     ))]
 pub(crate) async fn viewer_frame(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    Params(id): Params<String>,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Json<ViewerFrame>, ServiceError> {
@@ -407,7 +408,7 @@ pub(crate) async fn viewer_frame(
 /// solve permit, the solve pool, the frame metrics), then evaluates the
 /// posed curvenets.
 async fn solve_frame(state: &AppState, entry: Arc<Entry>, frame: Frame) -> Result<ViewerFrame, ServiceError> {
-    let permit = state.permits(1)?;
+    let permit = state.permit().await?;
     let metrics = state.inner.metrics.clone();
     state
         .on_pool(move || {

@@ -825,7 +825,9 @@
   const STAT_LABELS = {
     mesh_vertices: 'mesh vertices', mesh_faces: 'mesh faces', samples: 'samples', segments: 'segments',
     cut_vertices: 'cut-vertices', cut_faces: 'cut-faces', cut_halfedges: 'cut halfedges', cracks: 'cracks',
-    islands_removed: 'islands removed', unknowns: 'unknowns', constraints: 'constraint rows', factor_nonzeros: 'factor nonzeros',
+    islands_removed: 'islands removed', chord_paths: 'segments inside one face', straightest_paths: 'straightest paths',
+    fallback_paths: 'fallback paths', segments_left_out: 'segments left out', detours: 'detours', unknowns: 'unknowns',
+    constraints: 'constraint rows', factor_nonzeros: 'factor nonzeros',
   };
 
   function fillPanel(data) {

@@ -1,0 +1,317 @@
+//! The deformer: the one way in and the one way through.
+//!
+//! Every caller — the bake, the service (frames, batches, one-shot deforms,
+//! the viewer), the bench, `inspect --bind` and the tests — turns its data
+//! into a [`DeformerInput`] (plain slices: the mesh in its projection pose,
+//! the curvenets, the blend shapes, the options) and builds a [`Deformer`]
+//! with [`Deformer::new`], the only place a binding is made from plain
+//! data. A frame is then one call to [`Deformer::frame`], the only place a
+//! frame is solved: posed curvenets (or knot tracking), the frame's rest
+//! pose, blend-shape weights in either mode, gradients on request.
+//!
+//! ```text
+//! DeformerInput ──Deformer::new──▶ Deformer { Binding, BlendShapes, workspaces }
+//!   Surface::new                      (validation, face planes, closest-point tree)
+//!   CurvenetLayout per curvenet       (§3: topology, sampling, fans, slots)
+//!   Binding::with_surface             (§4.1–4.2: cut-mesh, Laplacian, factor)
+//! Frame ──Deformer::frame──▶ points (+ gradients)
+//!   blend shapes before (sculpt the rest pose)   Binding::deform (§4.3, §5)
+//!   blend shapes after (mapped by F_v)
+//! ```
+//!
+//! A `Deformer` is immutable and `Send + Sync`: frames of one deformer may
+//! be solved from many threads at once; each takes a workspace from the
+//! deformer's pool and gives it back, so after the first frames on a thread
+//! a frame allocates nothing but what its mode needs (see [`Deformer::frame`]).
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use crate::binding::{BindOptions, Binding, Surface};
+use crate::blend_shapes::{BlendShape, BlendShapes};
+use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
+use crate::error::{Error, Result};
+use crate::mesh::PolyMesh;
+use crate::solve::{FrameInput, Workspace};
+
+/// A mesh in its projection pose (the pose the curvenets were drawn on):
+/// USD / OBJ face layout, counter-clockwise faces seen from outside.
+#[derive(Debug, Clone, Copy)]
+pub struct MeshInput<'a> {
+    pub face_vertex_counts: &'a [u32],
+    pub face_vertex_indices: &'a [u32],
+    pub projection_points: &'a [[f64; 3]],
+}
+
+/// A curvenet: cubic Bézier splines over a pool of control points in the
+/// neutral pose, and its sampling density (the paper's samples per mean edge, 5).
+#[derive(Debug, Clone, Copy)]
+pub struct CurvenetInput<'a> {
+    pub splines: &'a [[u32; 4]],
+    pub pool: &'a [[f64; 3]],
+    pub sample_density: f64,
+}
+
+/// Everything a deformer is built from.
+#[derive(Debug, Clone)]
+pub struct DeformerInput<'a> {
+    pub mesh: MeshInput<'a>,
+    /// The curvenets, in the order frames give their posed pools.
+    pub curvenets: &'a [CurvenetInput<'a>],
+    /// The mesh's blend shapes (UsdSkel semantics), in the order frames give their weights.
+    pub blend_shapes: Vec<BlendShape>,
+    pub options: DeformerOptions,
+}
+
+/// Options of [`Deformer::new`].
+#[derive(Debug, Clone, Default)]
+#[non_exhaustive]
+pub struct DeformerOptions {
+    pub bind: BindOptions,
+    /// The sampling's cap on segments per spline (`None`: the default).
+    pub max_segments_per_spline: Option<u32>,
+}
+
+impl DeformerOptions {
+    pub fn with_bind(mut self, bind: BindOptions) -> Self {
+        self.bind = bind;
+        self
+    }
+    pub fn with_max_segments_per_spline(mut self, max: u32) -> Self {
+        self.max_segments_per_spline = Some(max);
+        self
+    }
+}
+
+/// How blend shapes combine with the curvenet deformation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum BlendShapeMode {
+    /// Offsets mapped by each vertex's deformation gradient after the
+    /// deformation (paper §5, the default): sculpts move with the surface.
+    #[default]
+    After,
+    /// Offsets added to the rest pose before the deformation (UsdSkel's order).
+    Before,
+}
+
+/// One frame's input.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Frame<'a> {
+    /// The posed pool of each curvenet (absolute positions), `None` for a
+    /// curvenet not articulated this frame (its knots track the rest pose);
+    /// an empty slice: no curvenet is articulated.
+    pub posed: &'a [Option<&'a [[f64; 3]]>],
+    /// The mesh's rest pose this frame (skinning or cloth output); `None`:
+    /// the projection pose.
+    pub rest: Option<&'a [[f64; 3]]>,
+    /// One weight per blend shape; `None` (or all zero): no blend shapes.
+    pub blend_shape_weights: Option<&'a [f64]>,
+    pub blend_shape_mode: BlendShapeMode,
+    /// Curvenet Adjustments on top of whatever poses the curvenets
+    /// ([`crate::adjust`]); empty: none.
+    pub adjustments: &'a [crate::adjust::Adjustment],
+}
+
+/// Times of a deformer's construction, milliseconds.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DeformerTimings {
+    /// Curvenet analysis and sampling (paper §3), all curvenets.
+    pub analysis_ms: f64,
+    /// Surface, cutting, assembly and factor: see [`Binding::timings`].
+    pub binding: crate::binding::BindTimings,
+    /// The whole construction, wall time.
+    pub total_ms: f64,
+}
+
+/// What one frame solve needs besides the binding's own workspace.
+#[derive(Debug)]
+struct Scratch {
+    ws: Workspace,
+    /// Gradients for the `after` blend-shape mode when the caller wants none.
+    gradients: Vec<[f64; 9]>,
+    /// The sculpted rest pose of the `before` mode.
+    sculpted: Vec<[f64; 3]>,
+    /// `None` per curvenet, for frames that articulate none.
+    unposed: Vec<Option<&'static [[f64; 3]]>>,
+}
+
+/// A bound mesh: the binding, the blend shapes and a pool of workspaces.
+#[derive(Debug)]
+pub struct Deformer {
+    binding: Binding,
+    shapes: BlendShapes,
+    projection_points: Vec<[f64; 3]>,
+    timings: DeformerTimings,
+    pool: Mutex<Vec<Scratch>>,
+}
+
+/// At most this many workspaces are kept for reuse (one per solving thread is enough).
+const KEEP_WORKSPACES: usize = 32;
+
+impl Deformer {
+    /// Binds the curvenets to the mesh: validates the mesh, analyses and
+    /// samples every curvenet against it, cuts and factors. Errors about a
+    /// curvenet's own shape are wrapped in [`Error::Curvenet`] naming it;
+    /// binding errors name segments as (curvenet, spline, segment).
+    pub fn new(input: &DeformerInput<'_>) -> Result<Self> {
+        let t0 = Instant::now();
+        if input.curvenets.is_empty() {
+            return Err(Error::Empty { what: "the list of curvenets to bind" });
+        }
+        let m = input.mesh;
+        let n = m.projection_points.len();
+        let mesh = PolyMesh::new(m.face_vertex_counts, m.face_vertex_indices, n)?;
+        let surface = Surface::new(&mesh, m.projection_points)?;
+        let surface_ms = ms(t0);
+        let t1 = Instant::now();
+        let layouts = input
+            .curvenets
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let mut options = SamplingOptions::default().with_density(c.sample_density);
+                if let Some(max) = input.options.max_segments_per_spline {
+                    options = options.with_max_segments_per_spline(max);
+                }
+                Curvenet::new(c.splines, c.pool)
+                    .and_then(|net| {
+                        CurvenetLayout::with_closest_point(
+                            &net,
+                            surface.closest_points(),
+                            surface.mean_edge_length(),
+                            &options,
+                        )
+                    })
+                    .map_err(|e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let analysis_ms = ms(t1);
+        let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
+        let binding = Binding::with_surface(surface, &refs, &input.options.bind, surface_ms)?;
+        let shapes = BlendShapes::new(n, input.blend_shapes.clone());
+        let timings = DeformerTimings { analysis_ms, binding: binding.timings(), total_ms: ms(t0) };
+        Ok(Self {
+            binding,
+            shapes,
+            projection_points: m.projection_points.to_vec(),
+            timings,
+            pool: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Deforms the mesh for one frame into `out` (one point per vertex) and,
+    /// when given, each vertex's deformation gradient (row-major 3×3) into
+    /// `gradients`.
+    ///
+    /// Allocates nothing once this thread's workspace exists, except a
+    /// frame in the `before` blend-shape mode with no rest pose of its own
+    /// (it copies the projection pose to sculpt it, into a reused buffer).
+    /// Errors name the array and element (counts, non-finite values, a
+    /// degenerate pose of a named curvenet).
+    pub fn frame(&self, frame: &Frame<'_>, out: &mut [[f64; 3]], gradients: Option<&mut [[f64; 9]]>) -> Result<()> {
+        let n = self.binding.n_vertices();
+        if let Some(w) = frame.blend_shape_weights
+            && w.len() != self.shapes.len()
+        {
+            return Err(Error::CountMismatch {
+                what: "blend-shape weights",
+                expected: self.shapes.len(),
+                got: w.len(),
+            });
+        }
+        if let Some(i) = frame.blend_shape_weights.and_then(|w| w.iter().position(|x| !x.is_finite())) {
+            let value = frame.blend_shape_weights.map_or(f64::NAN, |w| w[i]);
+            return Err(Error::NonFiniteScalar { what: "blend-shape weight", index: i, value });
+        }
+        let mut s = self.take();
+        let weights = frame.blend_shape_weights.filter(|w| !self.shapes.is_empty() && w.iter().any(|&x| x != 0.0));
+        let result = (|| {
+            let rest = match (weights, frame.blend_shape_mode) {
+                (Some(w), BlendShapeMode::Before) => {
+                    s.sculpted.clear();
+                    s.sculpted.extend_from_slice(frame.rest.unwrap_or(&self.projection_points));
+                    if s.sculpted.len() != n {
+                        return Err(Error::CountMismatch {
+                            what: "rest-pose points",
+                            expected: n,
+                            got: s.sculpted.len(),
+                        });
+                    }
+                    self.shapes.add_to(w, &mut s.sculpted)?;
+                    Some(&s.sculpted[..])
+                }
+                _ => frame.rest,
+            };
+            let posed = if frame.posed.is_empty() { &s.unposed[..] } else { frame.posed };
+            let after = weights.filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
+            match (after, gradients) {
+                (Some(w), Some(g)) => {
+                    self.binding.deform(
+                        &FrameInput { posed, rest, adjustments: frame.adjustments },
+                        &mut s.ws,
+                        out,
+                        Some(&mut *g),
+                    )?;
+                    self.shapes.add_deformed(w, g, out)
+                }
+                (Some(w), None) => {
+                    s.gradients.resize(n, [0.0; 9]);
+                    self.binding.deform(
+                        &FrameInput { posed, rest, adjustments: frame.adjustments },
+                        &mut s.ws,
+                        out,
+                        Some(&mut s.gradients),
+                    )?;
+                    self.shapes.add_deformed(w, &s.gradients, out)
+                }
+                (None, g) => {
+                    self.binding.deform(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, out, g)
+                }
+            }
+        })();
+        self.give(s);
+        result
+    }
+
+    /// A workspace for one frame, reused from earlier frames when one is free.
+    fn take(&self) -> Scratch {
+        let reused = self.pool.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        reused.unwrap_or_else(|| Scratch {
+            ws: self.binding.workspace(),
+            gradients: Vec::new(),
+            sculpted: Vec::new(),
+            unposed: vec![None; self.binding.n_curvenets()],
+        })
+    }
+
+    fn give(&self, s: Scratch) {
+        let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < KEEP_WORKSPACES {
+            pool.push(s);
+        }
+    }
+
+    /// The binding (cut-mesh, factor, analysed curvenets, warnings, stats).
+    pub fn binding(&self) -> &Binding {
+        &self.binding
+    }
+    /// The blend shapes, in the order of a frame's weights.
+    pub fn blend_shapes(&self) -> &BlendShapes {
+        &self.shapes
+    }
+    /// The mesh in its projection pose.
+    pub fn projection_points(&self) -> &[[f64; 3]] {
+        &self.projection_points
+    }
+    /// Number of mesh vertices: the length of a frame's output.
+    pub fn n_vertices(&self) -> usize {
+        self.binding.n_vertices()
+    }
+    pub fn timings(&self) -> DeformerTimings {
+        self.timings
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
