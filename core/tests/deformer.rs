@@ -41,6 +41,7 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
         },
         curvenets: &nets,
         blend_shapes: shapes(pts.len()),
+        skinning: None,
         options: DeformerOptions::default(),
     };
     let d = Deformer::new(&input).unwrap();
@@ -134,6 +135,7 @@ fn errors_name_the_curvenet() {
         },
         curvenets: &nets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: DeformerOptions::default(),
     };
     let e = Deformer::new(&input).unwrap_err();

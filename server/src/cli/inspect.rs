@@ -16,8 +16,9 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use curvenet_core::binding::surface::Surface;
 use curvenet_core::curvenet::CurveEnd;
-use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::{Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingStats, BindingTimings};
 use curvenet_schema::{CurvenetData, MeshData};
@@ -460,13 +461,13 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
     let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
     let Some(rig) = super::rig::MeshRig::new(stage, m, &nets, 0)? else { return Ok(None) };
     let transforms = match time {
-        Some(_) => Some(rig.read_transforms(stage, time)?),
+        Some(_) => Some(rig.joints.read_transforms(stage, time)?),
         None => None,
     };
     let diagonal = curvenet_core::mesh::bounding_box_diagonal(&m.projection_points);
     let mut curvenets = Vec::new();
-    for (net, nr) in nets.iter().zip(&rig.nets) {
-        let Some(nr) = nr else {
+    for ((net, nr), spline) in nets.iter().zip(&rig.nets).zip(&rig.skinning.curvenets) {
+        let (Some(nr), Some(spline)) = (nr, spline) else {
             curvenets.push(NetRigReport {
                 path: net.path.clone(),
                 skinning: "none",
@@ -479,18 +480,18 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
             });
             continue;
         };
-        let count = |f: fn(&JunctionKind) -> bool| nr.spline.junctions().iter().filter(|j| f(&j.kind)).count();
+        let count = |f: fn(&JunctionKind) -> bool| spline.junctions().iter().filter(|j| f(&j.kind)).count();
         let distance_at_time = match &transforms {
             None => None,
             Some(xf) => {
                 let core = |source| CliError::Core { context: net.path.clone(), source };
-                let mut fit = vec![[0.0; 3]; nr.spline.n_points()];
+                let mut fit = vec![[0.0; 3]; spline.n_points()];
                 let mut naive = fit.clone();
-                nr.spline.pose(xf, &mut fit).map_err(core)?;
-                nr.spline.pose_naive(xf, &mut naive).map_err(core)?;
+                spline.pose(xf, &mut fit).map_err(core)?;
+                spline.pose_naive(xf, &mut naive).map_err(core)?;
                 let (a, b) = (
-                    nr.spline.distance_to_skinned(&fit, xf).map_err(core)?,
-                    nr.spline.distance_to_skinned(&naive, xf).map_err(core)?,
+                    spline.distance_to_skinned(&fit, xf).map_err(core)?,
+                    spline.distance_to_skinned(&naive, xf).map_err(core)?,
                 );
                 Some(SkinDistanceReport {
                     spline_mean: a.mean / diagonal,
@@ -503,7 +504,7 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
         curvenets.push(NetRigReport {
             path: net.path.clone(),
             skinning: nr.mode,
-            joints: nr.spline.joints().iter().map(|&j| rig.rig.joints[j as usize].clone()).collect(),
+            joints: spline.joints().iter().map(|&j| rig.joints.rig.joints[j as usize].clone()).collect(),
             derived_weight_deviation: nr.weight_deviation,
             c1_junctions: count(|k| *k == JunctionKind::C1),
             g1_junctions: count(|k| *k == JunctionKind::G1),
@@ -513,15 +514,15 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
     }
     let order = stage.blend_shape_order(m)?.unwrap_or(curvenet_schema::usd::BlendShapeOrder::BeforeSkinning);
     Ok(Some(RigReport {
-        skel_root: rig.rig.skel_root.clone(),
-        skeleton: rig.rig.skeleton.clone(),
-        joints: rig.rig.joints.clone(),
-        animation: rig.rig.animation.clone(),
-        animation_frames: rig.rig.time_samples.len(),
-        method: rig.rig.method.token(),
-        influences_per_point: rig.rig.element_size,
-        rigid: rig.rig.constant_influences,
-        geom_bind_transform: rig.rig.geom_bind_transform,
+        skel_root: rig.joints.rig.skel_root.clone(),
+        skeleton: rig.joints.rig.skeleton.clone(),
+        joints: rig.joints.rig.joints.clone(),
+        animation: rig.joints.rig.animation.clone(),
+        animation_frames: rig.joints.rig.time_samples.len(),
+        method: rig.joints.rig.method.token(),
+        influences_per_point: rig.joints.rig.element_size,
+        rigid: rig.joints.rig.constant_influences,
+        geom_bind_transform: rig.joints.rig.geom_bind_transform,
         unnormalized_points: rig.unnormalized.len(),
         blend_shape_order: match order {
             curvenet_schema::usd::BlendShapeOrder::BeforeSkinning => "beforeSkinning",
@@ -585,45 +586,30 @@ fn rig_text(s: &mut String, r: &RigReport) {
     }
 }
 
-/// Binds `m` as the bake does (`super::bind_mesh`). A core error is part of
+/// Binds `m` as the bake does (`super::deformer`). A core error is part of
 /// the report (the command then exits 2); a stage that breaks the contract is
 /// an error of the command.
 fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
     let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
     let start = std::time::Instant::now();
-    let bound = super::bind_mesh(m, &nets);
+    let bound = super::deformer(m, &nets, None);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
-        Ok((b, analysis_ms)) => BindingReport {
-            stats: Some(BindingStats::from(&b.stats())),
-            timings: Some(BindingTimings::new(analysis_ms, &b.timings(), total_ms)),
-            warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
+        Ok(d) => BindingReport {
+            stats: Some(BindingStats::from(&d.binding().stats())),
+            timings: Some(BindingTimings::new(d.timings().analysis_ms, &d.binding().timings(), total_ms)),
+            warnings: d.binding().warnings().iter().map(|w| w.to_string()).collect(),
             error: None,
         },
         Err(e) => BindingReport { stats: None, timings: None, warnings: Vec::new(), error: Some(e.to_string()) },
     })
 }
 
-/// A mesh's surface in its projection pose, built once for all the
-/// curvenets that target it.
-struct Surface {
-    path: String,
-    bvh: ClosestPointBvh,
-    mean_edge_length: f64,
-    diagonal: f64,
-}
-
-impl Surface {
-    fn new(m: &MeshData) -> Result<Self, curvenet_core::Error> {
-        let mesh = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())?;
-        let bvh = ClosestPointBvh::new(&mesh, &m.projection_points)?;
-        Ok(Self {
-            path: m.path.clone(),
-            bvh,
-            mean_edge_length: mesh.mean_edge_length(&m.projection_points),
-            diagonal: curvenet_core::mesh::bounding_box_diagonal(&m.projection_points),
-        })
-    }
+/// A mesh's surface in its projection pose (core's, as the bake samples
+/// against it), built once for all the curvenets that target it.
+fn surface(m: &MeshData) -> Result<Surface, curvenet_core::Error> {
+    let mesh = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())?;
+    Surface::new(&mesh, &m.projection_points)
 }
 
 fn curvenet_report(
@@ -689,9 +675,9 @@ fn curvenet_report(
                     meshes[m].path
                 ));
             }
-            let surface = surfaces[m].get_or_insert_with(|| Surface::new(&meshes[m]));
+            let surface = surfaces[m].get_or_insert_with(|| surface(&meshes[m]));
             let result = match surface {
-                Ok(surface) => analyse(c, surface, unused, &mut warnings),
+                Ok(surface) => analyse(c, &meshes[m].path, surface, unused, &mut warnings),
                 Err(e) => Err(e.clone()),
             };
             match result {
@@ -774,13 +760,15 @@ fn unused_control_points(c: &CurvenetData) -> Vec<u32> {
 /// The analysis of one curvenet (neutral pool) against `surface`.
 fn analyse(
     c: &CurvenetData,
+    mesh_path: &str,
     surface: &Surface,
     unused_control_points: Vec<u32>,
     warnings: &mut Vec<String>,
 ) -> Result<Analysis, curvenet_core::Error> {
     let net = Curvenet::new(&c.splines, &c.pool)?;
     let options = SamplingOptions::default().with_density(c.sample_density);
-    let layout = CurvenetLayout::with_closest_point(&net, &surface.bvh, surface.mean_edge_length, &options)?;
+    let layout =
+        CurvenetLayout::with_closest_point(&net, surface.closest_points(), surface.mean_edge_length(), &options)?;
     let topology = layout.topology();
     let sampling = layout.sampling();
     let samples = layout.neutral_samples();
@@ -813,12 +801,12 @@ fn analyse(
         let splines: Vec<CurveSplineReport> =
             curve.splines.iter().map(|s| CurveSplineReport { spline: s.spline, reversed: s.reversed }).collect();
         let names = spline_list(&splines);
-        if length < surface.mean_edge_length {
+        if length < surface.mean_edge_length() {
             warnings.push(format!(
                 "{}: curve {k} (spline{} {names}) is {length:.4} long, shorter than one mean mesh edge ({:.4})",
                 c.path,
                 plural(splines.len()),
-                surface.mean_edge_length
+                surface.mean_edge_length()
             ));
         }
         if n_segments < 2 {
@@ -839,9 +827,11 @@ fn analyse(
     }
 
     // Distance of every neutral sample from the surface, worst per spline.
-    let distances =
-        samples.iter().map(|&p| surface.bvh.closest_point(p).map(|h| h.distance)).collect::<Result<Vec<f64>, _>>()?;
-    let limit = FAR_FROM_SURFACE * surface.diagonal;
+    let distances = samples
+        .iter()
+        .map(|&p| surface.closest_points().closest_point(p).map(|h| h.distance))
+        .collect::<Result<Vec<f64>, _>>()?;
+    let limit = FAR_FROM_SURFACE * surface.diagonal();
     let (mut max_distance, mut max_spline) = (0.0f64, 0u32);
     for s in 0..c.splines.len() {
         let (sample, d) = sampling
@@ -856,18 +846,18 @@ fn analyse(
                 "{}: spline {s} is {d:.4} from the surface of {} at sample {sample} ({:.1}% of its bounding-box \
                  diagonal {:.4}; the limit is {:.0}%)",
                 c.path,
-                surface.path,
-                100.0 * d / surface.diagonal,
-                surface.diagonal,
+                mesh_path,
+                100.0 * d / surface.diagonal(),
+                surface.diagonal(),
                 100.0 * FAR_FROM_SURFACE
             ));
         }
     }
 
     Ok(Analysis {
-        mesh: surface.path.clone(),
-        mean_edge_length: surface.mean_edge_length,
-        bounding_box_diagonal: surface.diagonal,
+        mesh: mesh_path.to_string(),
+        mean_edge_length: surface.mean_edge_length(),
+        bounding_box_diagonal: surface.diagonal(),
         control_points: c.pool.len(),
         unused_control_points,
         splines: c.splines.len(),

@@ -1,17 +1,18 @@
-//! The rig under the curvenets of one mesh, as the bake and `inspect` use
-//! it: the mesh's UsdSkel skinning (its frame's rest pose) and the spline
-//! skinning of the curvenets that ask for it (their frame's posed pool).
+//! The rig under the curvenets of one mesh, as the bake and `inspect` read
+//! it: the mesh's UsdSkel skin and the spline skinning of the curvenets that
+//! ask for it, built into a [`curvenet_core::deformer::Rig`] that
+//! [`curvenet_core::Deformer`] runs per frame (the skinned rest pose, the
+//! spline-skinned posed pools).
 //!
 //! Per frame the stage gives joint-local transforms
-//! ([`MeshRig::read_transforms`], on the stage's thread); everything else
-//! ([`MeshRig::rest`], [`MeshRig::posed`]) is core math over plain arrays,
-//! safe to run on any thread.
+//! ([`JointReader::read_transforms`], on the stage's thread); everything else
+//! is core math inside `Deformer::frame`, safe to run on any thread.
 
+use curvenet_core::deformer::Rig;
 use curvenet_core::skinning::{
     self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, Skin, SplineSkinning,
     SplineSkinningOptions, SurfaceWeights,
 };
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use curvenet_core::{ClosestPointBvh, PolyMesh};
 use curvenet_schema::usd::{CurvenetSkinning, SkinRig, Stage};
@@ -23,32 +24,34 @@ use super::{CliError, CliResult};
 /// to 1 exactly (float rounding); others are skinned as authored, with a warning.
 pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-4;
 
-/// How one curvenet of the mesh follows the skeleton.
+/// How one curvenet of the mesh follows the skeleton (its spline skinning
+/// is the matching entry of [`Rig::curvenets`]).
 pub struct NetRig {
     /// `"weights"` (authored per control point) or `"mesh"` (from the mesh's skin weights).
     pub mode: &'static str,
-    pub spline: SplineSkinning,
     /// `mesh`: the largest difference between the per-control-point weights
     /// derived from the mesh's and the mesh's own, at samples of the curves.
     pub weight_deviation: Option<f64>,
 }
 
-/// A mesh's UsdSkel rig, ready for frames.
-pub struct MeshRig {
+/// What reads a frame's skinning transforms from the stage: the UsdSkel
+/// binding and the Skeleton's topology and bind transforms.
+pub struct JointReader {
     pub rig: SkinRig,
     pub skeleton: Skeleton,
-    pub skin: Skin,
+}
+
+/// A mesh's UsdSkel rig, ready for a [`curvenet_core::Deformer`].
+pub struct MeshRig {
+    pub joints: JointReader,
+    /// The skin and the curvenets' spline skinning, for `DeformerInput::skinning`.
+    pub skinning: Rig,
     /// Mesh points whose weights do not sum to 1 (skinned as authored).
     pub unnormalized: Vec<usize>,
     /// One entry per curvenet of the mesh, in binding order.
     pub nets: Vec<Option<NetRig>>,
     /// Wall time of the spline skinning precomputation (all curvenets).
     pub spline_ms: f64,
-    /// Up to this many G¹-flexible iterations per spline-skinned pose (0: the fixed-ratio fit).
-    pub flexible: usize,
-    /// Iterations done and poses computed with them, over all frames.
-    pub flexible_iterations: AtomicU64,
-    pub flexible_poses: AtomicU64,
 }
 
 fn core(context: String) -> impl FnOnce(curvenet_core::Error) -> CliError {
@@ -57,8 +60,10 @@ fn core(context: String) -> impl FnOnce(curvenet_core::Error) -> CliError {
 
 impl MeshRig {
     /// The rig of `mesh` and its curvenets `nets`, or `None` when the mesh
-    /// has no UsdSkel joint influences. A curvenet that asks for spline
-    /// skinning on a mesh without a rig is bad input.
+    /// has no UsdSkel joint influences; spline-skinned poses take up to
+    /// `flexible` G¹-flexible iterations (0: the fixed-ratio fit). A
+    /// curvenet that asks for spline skinning on a mesh without a rig is
+    /// bad input.
     pub fn new(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData], flexible: usize) -> CliResult<Option<Self>> {
         let modes = nets.iter().map(|n| stage.curvenet_skinning(n)).collect::<Result<Vec<_>, _>>()?;
         let Some(rig) = stage.skin_rig(mesh)? else {
@@ -80,11 +85,12 @@ impl MeshRig {
         let t0 = std::time::Instant::now();
         let mut surface: Option<ClosestPointBvh> = None;
         let mut net_rigs = Vec::with_capacity(nets.len());
+        let mut splines = Vec::with_capacity(nets.len());
         for (net, mode) in nets.iter().zip(modes) {
             let context = || format!("{} (spline skinning over {})", net.path, mesh.path);
             let options = SplineSkinningOptions::default();
-            net_rigs.push(match mode {
-                CurvenetSkinning::None => None,
+            let (spline, net_rig) = match mode {
+                CurvenetSkinning::None => (None, None),
                 CurvenetSkinning::Weights { element_size, joint_indices, joint_weights } => {
                     let cp = Influences::new(net.pool.len(), element_size, &joint_indices, &joint_weights, n_joints)
                         .map_err(core(format!("{} (primvars:curvenet:skel:jointIndices, jointWeights)", net.path)))?;
@@ -92,7 +98,7 @@ impl MeshRig {
                     let spline =
                         SplineSkinning::new(&net.pool, &net.splines, &field, &rig.geom_bind_transform, &options)
                             .map_err(core(context()))?;
-                    Some(NetRig { mode: "weights", spline, weight_deviation: None })
+                    (Some(spline), Some(NetRig { mode: "weights", weight_deviation: None }))
                 }
                 CurvenetSkinning::FromMesh => {
                     if surface.is_none() {
@@ -114,28 +120,29 @@ impl MeshRig {
                     let spline =
                         SplineSkinning::new(&net.pool, &net.splines, &field, &rig.geom_bind_transform, &options)
                             .map_err(core(context()))?;
-                    Some(NetRig { mode: "mesh", spline, weight_deviation: Some(deviation) })
+                    (Some(spline), Some(NetRig { mode: "mesh", weight_deviation: Some(deviation) }))
                 }
-            });
+            };
+            splines.push(spline);
+            net_rigs.push(net_rig);
         }
         let spline_ms = t0.elapsed().as_secs_f64() * 1e3;
         let skin = Skin::new(influences, rig.geom_bind_transform, rig.method).map_err(core(mesh.path.clone()))?;
         Ok(Some(Self {
-            rig,
-            skeleton,
-            skin,
+            joints: JointReader { rig, skeleton },
+            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible },
             unnormalized,
             nets: net_rigs,
             spline_ms,
-            flexible,
-            flexible_iterations: AtomicU64::new(0),
-            flexible_poses: AtomicU64::new(0),
         }))
     }
+}
 
+impl JointReader {
     /// The skinning transforms at `time` (one per Skeleton joint), with the
     /// Skeleton-to-mesh transform folded in so that skinned points come out
-    /// in the mesh's space. Reads the stage.
+    /// in the mesh's space: [`curvenet_core::Frame::joint_transforms`].
+    /// Reads the stage.
     pub fn read_transforms(&self, stage: &Stage, time: Option<f64>) -> CliResult<Vec<Mat4>> {
         let local = stage.joint_local_transforms(&self.rig, time)?;
         let mut out = vec![skinning::IDENTITY; local.len()];
@@ -147,28 +154,5 @@ impl MeshRig {
             }
         }
         Ok(out)
-    }
-
-    /// The frame's rest pose: `points` (the mesh's bind pose at the frame,
-    /// blend shapes already added when they go before skinning) skinned.
-    pub fn rest(&self, points: &[[f64; 3]], transforms: &[Mat4]) -> Result<Vec<[f64; 3]>, curvenet_core::Error> {
-        let mut out = vec![[0.0; 3]; points.len()];
-        self.skin.skin_points(points, transforms, &mut out)?;
-        Ok(out)
-    }
-
-    /// The spline-skinned pool of curvenet `k`, if it is spline-skinned
-    /// (with up to `flexible` G¹-flexible iterations).
-    pub fn posed(&self, k: usize, transforms: &[Mat4]) -> Result<Option<Vec<[f64; 3]>>, curvenet_core::Error> {
-        let Some(net) = &self.nets[k] else { return Ok(None) };
-        let mut out = vec![[0.0; 3]; net.spline.n_points()];
-        if self.flexible == 0 {
-            net.spline.pose(transforms, &mut out)?;
-        } else {
-            let report = net.spline.pose_flexible(transforms, self.flexible, &mut out)?;
-            self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
-            self.flexible_poses.fetch_add(1, Ordering::Relaxed);
-        }
-        Ok(Some(out))
     }
 }
