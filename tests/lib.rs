@@ -56,6 +56,7 @@ pub fn deformer_input<'a>(mesh: &'a MeshData, curvenets: &'a [CurvenetInput<'a>]
         },
         curvenets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: Default::default(),
     }
 }

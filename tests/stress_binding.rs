@@ -118,6 +118,7 @@ fn attempt(topology: &PolyMesh, counts: &[u32], points: &[[f64; 3]], seed: u64) 
         },
         curvenets: std::slice::from_ref(&curvenet),
         blend_shapes: Vec::new(),
+        skinning: None,
         options: Default::default(),
     };
     let e = match Deformer::new(&input) {

@@ -7,7 +7,10 @@
 //! with [`Deformer::new`], the only place a binding is made from plain
 //! data. A frame is then one call to [`Deformer::frame`], the only place a
 //! frame is solved: posed curvenets (or knot tracking), the frame's rest
-//! pose, blend-shape weights in either mode, gradients on request.
+//! pose, blend-shape weights in either mode, gradients on request, and —
+//! for a mesh with a rig underneath ([`Rig`]) — the frame's skinning: the
+//! rest pose is the mesh's points skinned by the frame's joint transforms
+//! and spline-skinned curvenets take their posed pools from them.
 //!
 //! ```text
 //! DeformerInput ──Deformer::new──▶ Deformer { Binding, BlendShapes, workspaces }
@@ -15,7 +18,10 @@
 //!   CurvenetLayout per curvenet       (§3: topology, sampling, fans, slots)
 //!   Binding::with_surface             (§4.1–4.2: cut-mesh, Laplacian, factor)
 //! Frame ──Deformer::frame──▶ points (+ gradients)
-//!   blend shapes before (sculpt the rest pose)   Binding::deform (§4.3, §5)
+//!   blend shapes before (sculpt the rest pose)
+//!   skinning of the rest pose (Rig::skin)        joint transforms given
+//!   spline skinning of curvenets (Rig::curvenets)
+//!   Binding::deform (§4.3, §5; Curvenet Adjustments)
 //!   blend shapes after (mapped by F_v)
 //! ```
 //!
@@ -25,6 +31,7 @@
 //! a frame allocates nothing but what its mode needs (see [`Deformer::frame`]).
 
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use crate::binding::{BindOptions, Binding, Surface};
@@ -32,6 +39,7 @@ use crate::blend_shapes::{BlendShape, BlendShapes};
 use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
+use crate::skinning::{Mat4, Skin, SplineSkinning};
 use crate::solve::{FrameInput, Workspace};
 
 /// A mesh in its projection pose (the pose the curvenets were drawn on):
@@ -60,7 +68,37 @@ pub struct DeformerInput<'a> {
     pub curvenets: &'a [CurvenetInput<'a>],
     /// The mesh's blend shapes (UsdSkel semantics), in the order frames give their weights.
     pub blend_shapes: Vec<BlendShape>,
+    /// The rig underneath, when the mesh is skinned in process: frames then
+    /// give joint transforms ([`Frame::joint_transforms`]).
+    pub skinning: Option<Rig>,
     pub options: DeformerOptions,
+}
+
+/// The rig under the curvenets ([`crate::skinning`], UsdSkel's semantics):
+/// the mesh's skin, whose skinning of the mesh's points is a frame's rest
+/// pose, and the spline skinning (Liu et al. 2015) of the curvenets that
+/// follow the skeleton.
+#[derive(Debug, Clone)]
+pub struct Rig {
+    /// The mesh's influences, `geomBindTransform` and skinning method.
+    pub skin: Skin,
+    /// One entry per curvenet (the order of [`DeformerInput::curvenets`]):
+    /// its spline skinning, `None` for a curvenet that does not follow the
+    /// skeleton (it takes the frame's posed pool, else tracks the rest pose).
+    pub curvenets: Vec<Option<SplineSkinning>>,
+    /// Up to this many G¹-flexible iterations per spline-skinned pose
+    /// ([`SplineSkinning::pose_flexible`]); 0: the fixed-ratio fit
+    /// ([`SplineSkinning::pose`]).
+    pub flexible_iterations: usize,
+}
+
+/// G¹-flexible spline skinning done over a deformer's frames so far.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FlexibleStats {
+    /// Alternating iterations done, all poses together.
+    pub iterations: u64,
+    /// Curvenet poses computed with [`SplineSkinning::pose_flexible`].
+    pub poses: u64,
 }
 
 /// Options of [`Deformer::new`].
@@ -110,6 +148,14 @@ pub struct Frame<'a> {
     /// Curvenet Adjustments on top of whatever poses the curvenets
     /// ([`crate::adjust`]); empty: none.
     pub adjustments: &'a [crate::adjust::Adjustment],
+    /// The frame's skinning transforms (one per joint of the deformer's
+    /// [`Rig`], in the mesh's space), for a deformer with a rig; `None`: no
+    /// skinning this frame. With them, `rest` (or the projection pose) is
+    /// the mesh's points before skinning: blend shapes in the `before` mode
+    /// are added to it, the skin then gives the frame's rest pose; and every
+    /// spline-skinned curvenet's posed pool is its spline skinning (in place
+    /// of its entry of `posed`).
+    pub joint_transforms: Option<&'a [Mat4]>,
 }
 
 /// Times of a deformer's construction, milliseconds.
@@ -133,6 +179,10 @@ struct Scratch {
     sculpted: Vec<[f64; 3]>,
     /// `None` per curvenet, for frames that articulate none.
     unposed: Vec<Option<&'static [[f64; 3]]>>,
+    /// The skinned rest pose of a frame with joint transforms.
+    skinned: Vec<[f64; 3]>,
+    /// The spline-skinned pool of each curvenet (empty for the others).
+    pools: Vec<Vec<[f64; 3]>>,
 }
 
 /// A bound mesh: the binding, the blend shapes and a pool of workspaces.
@@ -143,6 +193,9 @@ pub struct Deformer {
     projection_points: Vec<[f64; 3]>,
     timings: DeformerTimings,
     pool: Mutex<Vec<Scratch>>,
+    rig: Option<Rig>,
+    flexible_iterations: AtomicU64,
+    flexible_poses: AtomicU64,
 }
 
 /// At most this many workspaces are kept for reuse (one per solving thread is enough).
@@ -152,7 +205,9 @@ impl Deformer {
     /// Binds the curvenets to the mesh: validates the mesh, analyses and
     /// samples every curvenet against it, cuts and factors. Errors about a
     /// curvenet's own shape are wrapped in [`Error::Curvenet`] naming it;
-    /// binding errors name segments as (curvenet, spline, segment).
+    /// binding errors name segments as (curvenet, spline, segment). A rig
+    /// whose sizes do not match the mesh or its curvenets is refused, naming
+    /// the count (and the curvenet).
     pub fn new(input: &DeformerInput<'_>) -> Result<Self> {
         let t0 = Instant::now();
         if input.curvenets.is_empty() {
@@ -160,6 +215,9 @@ impl Deformer {
         }
         let m = input.mesh;
         let n = m.projection_points.len();
+        if let Some(rig) = &input.skinning {
+            check_rig(rig, n, input.curvenets)?;
+        }
         let mesh = PolyMesh::new(m.face_vertex_counts, m.face_vertex_indices, n)?;
         let surface = Surface::new(&mesh, m.projection_points)?;
         let surface_ms = ms(t0);
@@ -197,6 +255,9 @@ impl Deformer {
             projection_points: m.projection_points.to_vec(),
             timings,
             pool: Mutex::new(Vec::new()),
+            rig: input.skinning.clone(),
+            flexible_iterations: AtomicU64::new(0),
+            flexible_poses: AtomicU64::new(0),
         })
     }
 
@@ -204,11 +265,21 @@ impl Deformer {
     /// when given, each vertex's deformation gradient (row-major 3×3) into
     /// `gradients`.
     ///
+    /// A frame is, in order: blend shapes in the `before` mode added to the
+    /// rest pose (or the projection pose); with joint transforms, that pose
+    /// skinned by the [`Rig`]'s skin (the frame's rest pose) and the
+    /// spline-skinned curvenets posed; the solve (posed pools or knot
+    /// tracking, then Curvenet Adjustments); blend shapes in the `after`
+    /// mode mapped by each vertex's deformation gradient.
+    ///
     /// Allocates nothing once this thread's workspace exists, except a
     /// frame in the `before` blend-shape mode with no rest pose of its own
-    /// (it copies the projection pose to sculpt it, into a reused buffer).
+    /// (it copies the projection pose to sculpt it, into a reused buffer),
+    /// a frame spline-skinning a curvenet (the list of posed pools, and
+    /// whatever [`SplineSkinning::pose`] needs) and the
+    /// first skinned frames on a thread (reused buffers).
     /// Errors name the array and element (counts, non-finite values, a
-    /// degenerate pose of a named curvenet).
+    /// degenerate pose of a named curvenet, a joint transform).
     pub fn frame(&self, frame: &Frame<'_>, out: &mut [[f64; 3]], gradients: Option<&mut [[f64; 9]]>) -> Result<()> {
         let n = self.binding.n_vertices();
         if let Some(w) = frame.blend_shape_weights
@@ -223,6 +294,19 @@ impl Deformer {
         if let Some(i) = frame.blend_shape_weights.and_then(|w| w.iter().position(|x| !x.is_finite())) {
             let value = frame.blend_shape_weights.map_or(f64::NAN, |w| w[i]);
             return Err(Error::NonFiniteScalar { what: "blend-shape weight", index: i, value });
+        }
+        let skinning = match (&self.rig, frame.joint_transforms) {
+            (Some(rig), Some(t)) => Some((rig, t)),
+            (None, Some(_)) => {
+                return Err(Error::Unsupported {
+                    what: "joint transforms for a deformer without a rig (DeformerInput::skinning)",
+                });
+            }
+            (_, None) => None,
+        };
+        let n_nets = self.binding.n_curvenets();
+        if skinning.is_some() && !frame.posed.is_empty() && frame.posed.len() != n_nets {
+            return Err(Error::CountMismatch { what: "posed curvenets", expected: n_nets, got: frame.posed.len() });
         }
         let mut s = self.take();
         let weights = frame.blend_shape_weights.filter(|w| !self.shapes.is_empty() && w.iter().any(|&x| x != 0.0));
@@ -243,7 +327,43 @@ impl Deformer {
                 }
                 _ => frame.rest,
             };
-            let posed = if frame.posed.is_empty() { &s.unposed[..] } else { frame.posed };
+            // The rig: the rest pose skinned, spline-skinned curvenets posed.
+            let mut skinned_posed: Vec<Option<&[[f64; 3]]>> = Vec::new();
+            let rest = match skinning {
+                None => rest,
+                Some((rig, transforms)) => {
+                    let bind = rest.unwrap_or(&self.projection_points);
+                    s.skinned.resize(bind.len(), [0.0; 3]);
+                    rig.skin.skin_points(bind, transforms, &mut s.skinned)?;
+                    s.pools.resize_with(n_nets, Vec::new);
+                    for (k, spline) in rig.curvenets.iter().enumerate() {
+                        let Some(spline) = spline else { continue };
+                        let pool = &mut s.pools[k];
+                        pool.resize(spline.n_points(), [0.0; 3]);
+                        let posed = if rig.flexible_iterations == 0 {
+                            spline.pose(transforms, pool)
+                        } else {
+                            spline.pose_flexible(transforms, rig.flexible_iterations, pool).map(|report| {
+                                self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
+                                self.flexible_poses.fetch_add(1, Ordering::Relaxed);
+                            })
+                        };
+                        posed.map_err(|e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) })?;
+                    }
+                    skinned_posed.extend(rig.curvenets.iter().enumerate().map(|(k, spline)| match spline {
+                        Some(_) => Some(&s.pools[k][..]),
+                        None => frame.posed.get(k).copied().flatten(),
+                    }));
+                    Some(&s.skinned[..])
+                }
+            };
+            let posed = if !skinned_posed.is_empty() {
+                &skinned_posed[..]
+            } else if frame.posed.is_empty() {
+                &s.unposed[..]
+            } else {
+                frame.posed
+            };
             let after = weights.filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
             match (after, gradients) {
                 (Some(w), Some(g)) => {
@@ -282,6 +402,8 @@ impl Deformer {
             gradients: Vec::new(),
             sculpted: Vec::new(),
             unposed: vec![None; self.binding.n_curvenets()],
+            skinned: Vec::new(),
+            pools: Vec::new(),
         })
     }
 
@@ -321,6 +443,46 @@ impl Deformer {
     pub fn timings(&self) -> DeformerTimings {
         self.timings
     }
+    /// The rig underneath, when the mesh is skinned in process.
+    pub fn rig(&self) -> Option<&Rig> {
+        self.rig.as_ref()
+    }
+    /// G¹-flexible spline skinning done by this deformer's frames so far
+    /// (zero unless [`Rig::flexible_iterations`] is positive).
+    pub fn flexible_stats(&self) -> FlexibleStats {
+        FlexibleStats {
+            iterations: self.flexible_iterations.load(Ordering::Relaxed),
+            poses: self.flexible_poses.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// Refuses a rig whose sizes do not match the mesh (`n` points) or the curvenets.
+fn check_rig(rig: &Rig, n: usize, curvenets: &[CurvenetInput<'_>]) -> Result<()> {
+    let points = rig.skin.influences().n_points();
+    if points != n {
+        return Err(Error::CountMismatch { what: "skinned points (the rig's influences)", expected: n, got: points });
+    }
+    if rig.curvenets.len() != curvenets.len() {
+        return Err(Error::CountMismatch {
+            what: "curvenets of the rig",
+            expected: curvenets.len(),
+            got: rig.curvenets.len(),
+        });
+    }
+    for (k, (spline, net)) in rig.curvenets.iter().zip(curvenets).enumerate() {
+        if let Some(spline) = spline
+            && spline.n_points() != net.pool.len()
+        {
+            let e = Error::CountMismatch {
+                what: "spline-skinned control points",
+                expected: net.pool.len(),
+                got: spline.n_points(),
+            };
+            return Err(Error::Curvenet { curvenet: k as u32, source: Box::new(e) });
+        }
+    }
+    Ok(())
 }
 
 fn ms(t: Instant) -> f64 {

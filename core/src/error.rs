@@ -157,6 +157,9 @@ pub enum Error {
     /// A numeric parameter or option is out of its valid range.
     #[error("{what} must be finite and positive, got {value}")]
     InvalidParameter { what: &'static str, value: f64 },
+    /// Skinning input (influences, transforms, spline weights) refused; names the element.
+    #[error(transparent)]
+    Skinning(crate::skinning::SkinningError),
     /// The caller cancelled the computation ([`crate::Cancel`]) during `stage`.
     #[error("cancelled during {stage}")]
     Cancelled { stage: &'static str },

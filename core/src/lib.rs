@@ -28,6 +28,7 @@ pub mod heap;
 pub mod ids;
 pub mod mesh;
 pub mod polygon_laplacian;
+pub mod skinning;
 pub mod solve;
 pub mod sparse;
 
@@ -36,7 +37,9 @@ pub use binding::{BindOptions, BindWarning, Binding};
 pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
-pub use deformer::{BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
+pub use deformer::{
+    BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, FlexibleStats, Frame, MeshInput, Rig,
+};
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;
 pub use solve::{FrameInput, Workspace};

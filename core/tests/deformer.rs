@@ -41,6 +41,7 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
         },
         curvenets: &nets,
         blend_shapes: shapes(pts.len()),
+        skinning: None,
         options: DeformerOptions::default(),
     };
     let d = Deformer::new(&input).unwrap();
@@ -134,6 +135,7 @@ fn errors_name_the_curvenet() {
         },
         curvenets: &nets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: DeformerOptions::default(),
     };
     let e = Deformer::new(&input).unwrap_err();
@@ -142,4 +144,103 @@ fn errors_name_the_curvenet() {
         "{e}"
     );
     assert!(e.to_string().starts_with("curvenet 1: "), "{e}");
+}
+
+/// Two joints: 0 holds everything below `y = 0.42`, 1 everything above
+/// `0.48`, blended between; joint 1 moves by a translation and a small
+/// non-uniform scale.
+fn two_joint_influences(points: &[[f64; 3]]) -> curvenet_core::skinning::Influences {
+    let mut ji = Vec::new();
+    let mut jw = Vec::new();
+    for p in points {
+        let b = ((p[1] - 0.42) / 0.06).clamp(0.0, 1.0);
+        ji.extend([0, 1]);
+        jw.extend([1.0 - b, b]);
+    }
+    curvenet_core::skinning::Influences::new(points.len(), 2, &ji, &jw, 2).unwrap()
+}
+
+#[test]
+fn a_rigged_frame_is_skinning_then_spline_skinning_then_the_solve() {
+    use curvenet_core::skinning::{self, ControlPointWeights, Skin, SkinningMethod, SplineSkinning};
+    let (mesh, pts, net) = hand_with_grid();
+    let counts: Vec<u32> = mesh.face_vertex_counts().collect();
+    let nets = [CurvenetInput { splines: &net.splines, pool: &net.points, sample_density: 5.0 }];
+    let n = pts.len();
+    let mut moved = skinning::IDENTITY;
+    (moved[10], moved[12], moved[13]) = (1.02, 0.004, 0.01);
+    let transforms = [skinning::IDENTITY, moved];
+    let weights = [0.7, 0.25];
+    for method in [SkinningMethod::ClassicLinear, SkinningMethod::DualQuaternion] {
+        let skin = Skin::new(two_joint_influences(&pts), skinning::IDENTITY, method).unwrap();
+        let field = ControlPointWeights::new(two_joint_influences(&net.points));
+        let spline =
+            SplineSkinning::new(&net.points, &net.splines, &field, &skinning::IDENTITY, &Default::default()).unwrap();
+        let input = |rig: Option<curvenet_core::Rig>| DeformerInput {
+            mesh: MeshInput {
+                face_vertex_counts: &counts,
+                face_vertex_indices: mesh.face_vertex_indices(),
+                projection_points: &pts,
+            },
+            curvenets: &nets,
+            blend_shapes: shapes(n),
+            skinning: rig,
+            options: DeformerOptions::default(),
+        };
+        let rig =
+            curvenet_core::Rig { skin: skin.clone(), curvenets: vec![Some(spline.clone())], flexible_iterations: 0 };
+        let rigged = Deformer::new(&input(Some(rig))).unwrap();
+        let plain = Deformer::new(&input(None)).unwrap();
+        // By hand: blend shapes on the bind pose, skinning, the spline-skinned pool.
+        let mut sculpted = pts.clone();
+        BlendShapes::new(n, shapes(n)).add_to(&weights, &mut sculpted).unwrap();
+        let mut rest = vec![[0.0; 3]; n];
+        skin.skin_points(&sculpted, &transforms, &mut rest).unwrap();
+        let mut pool = vec![[0.0; 3]; net.points.len()];
+        spline.pose(&transforms, &mut pool).unwrap();
+        let mut want = vec![[0.0; 3]; n];
+        plain
+            .frame(&Frame { posed: &[Some(&pool)], rest: Some(&rest), ..Default::default() }, &mut want, None)
+            .unwrap();
+        let mut got = vec![[0.0; 3]; n];
+        let frame = Frame {
+            blend_shape_weights: Some(&weights),
+            blend_shape_mode: BlendShapeMode::Before,
+            joint_transforms: Some(&transforms),
+            ..Default::default()
+        };
+        rigged.frame(&frame, &mut got, None).unwrap();
+        assert_eq!(got, want, "{method:?}");
+        let diag = curvenet_core::mesh::bounding_box_diagonal(&pts);
+        let moved_by = got.iter().zip(&pts).map(|(a, b)| norm(sub(*a, *b))).fold(0.0, f64::max);
+        eprintln!("{method:?}: the rigged frame moves the hand by up to {:.3} x diagonal", moved_by / diag);
+        assert!(moved_by > 1e-3 * diag, "the rig should move the hand");
+        // Again on the same thread (reused buffers): the same points.
+        let mut again = vec![[0.0; 3]; n];
+        rigged.frame(&frame, &mut again, None).unwrap();
+        assert_eq!(again, got);
+        // Errors are named: transforms for a deformer without a rig, a wrong joint count.
+        assert!(matches!(
+            plain.frame(&Frame { joint_transforms: Some(&transforms), ..Default::default() }, &mut got, None),
+            Err(Error::Unsupported { .. })
+        ));
+        let e = rigged
+            .frame(&Frame { joint_transforms: Some(&transforms[..1]), ..Default::default() }, &mut got, None)
+            .unwrap_err();
+        assert!(e.to_string().contains("skinning transforms"), "{e}");
+    }
+    // A rig that does not fit the mesh or the curvenets is refused, naming the count.
+    let skin = Skin::new(two_joint_influences(&pts[..10]), skinning::IDENTITY, SkinningMethod::ClassicLinear).unwrap();
+    let bad = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &counts,
+            face_vertex_indices: mesh.face_vertex_indices(),
+            projection_points: &pts,
+        },
+        curvenets: &nets,
+        blend_shapes: Vec::new(),
+        skinning: Some(curvenet_core::Rig { skin, curvenets: vec![None], flexible_iterations: 0 }),
+        options: DeformerOptions::default(),
+    };
+    assert!(matches!(Deformer::new(&bad), Err(Error::CountMismatch { expected, got: 10, .. }) if expected == n));
 }

@@ -133,6 +133,7 @@ fn main() {
         },
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: DeformerOptions::default(),
     })
     .unwrap();

@@ -42,6 +42,7 @@ impl Reference {
             },
             curvenets: &curvenets,
             blend_shapes: Vec::new(),
+            skinning: None,
             options: DeformerOptions::default(),
         })
         .unwrap();

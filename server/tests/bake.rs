@@ -73,6 +73,7 @@ impl Reference {
             },
             curvenets: &curvenets,
             blend_shapes,
+            skinning: None,
             options: DeformerOptions::default(),
         })
         .unwrap();

@@ -46,6 +46,7 @@ fn reference(req: &BindingRequest) -> Deformer {
         },
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: DeformerOptions::default(),
     })
     .unwrap()

@@ -24,6 +24,7 @@ MANIFEST = json.loads((FIXTURES / "manifest.json").read_text(encoding="utf-8"))
 STAGES = sorted(MANIFEST["stages"])
 SHOT = "shots/hand_wave/shot.usda"
 SKINNED = "shots/hand_skinned/shot.usda"
+RIGGED = "shots/hand_rigged/shot.usda"
 ADJUSTED = "shots/hand_adjusted/shot.usda"
 HAND_STAGES = [f"hand/{n}" for n in
                ("hand_1k4.usda", "hand_closed.usda", "hand_lowres.usda", "hand_22k.usdc", "hand_94k.usdc")]
@@ -113,8 +114,8 @@ def expected_offsets(full, inbetweens, weight):
 
 def test_manifest_lists_every_composed_stage():
     assert MANIFEST["format"] == 1
-    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, ADJUSTED] + HAND_STAGES
-                            + CORPUS_STAGES)
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, RIGGED, ADJUSTED]
+                            + HAND_STAGES + CORPUS_STAGES)
     for rel in STAGES:
         assert (FIXTURES / rel).is_file(), rel
 
@@ -727,6 +728,94 @@ def test_skinned_hand_away_from_the_finger_turns_rigidly_about_the_wrist():
             # the turn is visible, and the finger does more than turn
             assert np.linalg.norm(got[far] - p0[far], axis=1).max() > 0.1 * diag
             assert np.linalg.norm(got[~far] - want[~far], axis=1).max() > 0.2 * diag
+
+
+# ----------------------------------------------------------------------------
+# the rigged shot: the skeleton is bound in the shot and usd-core skins it
+
+
+def rigged_queries(rel):
+    s = stage(rel)
+    cache = UsdSkel.Cache()
+    root = UsdSkel.Root(s.GetPrimAtPath("/Hand"))
+    assert root and cache.Populate(root, Usd.PrimDefaultPredicate)
+    skel_query = cache.GetSkelQuery(UsdSkel.Skeleton(s.GetPrimAtPath("/Hand/Skel")))
+    skinning = cache.GetSkinningQuery(s.GetPrimAtPath("/Hand/Mesh"))
+    assert skel_query and skinning and skinning.HasJointInfluences() and skinning.HasBlendShapes()
+    return skel_query, skinning
+
+
+def usdskel_reference(prim, t):
+    layer = Usd.Stage.Open(str(FIXTURES / "shots/hand_rigged/usdskel.usdc"))
+    return vec3(layer.GetPrimAtPath(prim).GetAttribute("points").Get(t))
+
+
+def test_rigged_shot_binds_its_skeleton_and_replaces_the_curvenet():
+    s = stage(RIGGED)
+    mesh = s.GetPrimAtPath("/Hand/Mesh")
+    assert UsdGeom.Mesh(mesh).GetPointsAttr().GetTimeSamples() == [], "the rest pose is the skinning"
+    assert not s.GetPrimAtPath("/Hand/Curvenet").IsActive()
+    skel_query, skinning = rigged_queries(RIGGED)
+    assert skinning.GetSkinningMethod() == "classicLinear"
+    assert skinning.GetNumInfluencesPerComponent() == 4
+    assert [j.split("/")[-1] for j in skel_query.GetJointOrder()] == [
+        "wrist", "palm", "index_mcp", "index_pip", "index_dip", "middle_mcp", "middle_pip", "middle_dip"]
+    assert rigged_queries("shots/hand_rigged/dqs.usda")[1].GetSkinningMethod() == "dualQuaternion"
+    nets = [str(p) for p in mesh.GetRelationship("curvenet:curvenets").GetTargets()]
+    assert nets == ["/Hand/IndexNet", "/Hand/MiddleNet", "/Hand/PalmNet"]
+    pools = [set(map(tuple, vec3(pool_primvar(s.GetPrimAtPath(p)).Get()).tolist())) for p in nets]
+    assert not (pools[0] & pools[1] or pools[0] & pools[2] or pools[1] & pools[2]), "the curvenets share points"
+    middle = s.GetPrimAtPath("/Hand/MiddleNet")
+    assert middle.GetAttribute("curvenet:skinning").Get() == "mesh"
+    assert middle.GetAttribute("curvenet:skinning").GetVariability() == Sdf.VariabilityUniform
+    for p in ("/Hand/MiddleNet", "/Hand/PalmNet"):
+        assert not s.GetPrimAtPath(p).HasAttribute("primvars:curvenet:skel:jointIndices")
+    assert not s.GetPrimAtPath("/Hand/PalmNet").HasAttribute("curvenet:skinning")
+
+
+def test_rigged_index_net_weights_are_per_control_point():
+    prim = stage(RIGGED).GetPrimAtPath("/Hand/IndexNet")
+    pv = UsdGeom.PrimvarsAPI(prim)
+    idx_pv, w_pv = pv.GetPrimvar("curvenet:skel:jointIndices"), pv.GetPrimvar("curvenet:skel:jointWeights")
+    assert idx_pv.GetElementSize() == w_pv.GetElementSize() == 4
+    assert idx_pv.GetInterpolation() == w_pv.GetInterpolation() == UsdGeom.Tokens.vertex
+    n = len(pool_primvar(prim).Get())
+    idx = np.array(idx_pv.Get(), dtype=np.int64).reshape(-1, 4)
+    w = np.array(w_pv.Get(), dtype=np.float64).reshape(-1, 4)
+    assert len(idx) == len(w) == n
+    assert idx.min() >= 0 and idx.max() < 8 and w.min() >= 0.0
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=0, atol=1e-6)
+    # the finger's rings follow the index joints; the base ring blends with the palm
+    finger = (w * (np.isin(idx, [2, 3, 4]) & (w > 0.0))).sum(axis=1)
+    palm = (w * (idx == 1)).sum(axis=1)
+    assert finger.max() > 0.99 and finger.min() > 0.5
+    assert np.any((palm > 0.01) & (finger > 0.5)), "no control point blends the finger with the palm"
+
+
+@pytest.mark.parametrize("frame", [1, 6, 12])
+def test_rigged_reference_is_usd_cores_skinning_after_the_blend_shape(frame):
+    """usdskel.usdc (BakeSkinning) = the blend shape on the bind pose, then
+    SkinningQuery.ComputeSkinnedPoints, for both methods."""
+    for rel, prim in ((RIGGED, "/LBS"), ("shots/hand_rigged/dqs.usda", "/DQS")):
+        skel_query, skinning = rigged_queries(rel)
+        mesh = stage(rel).GetPrimAtPath("/Hand/Mesh")
+        points = Vt.Vec3fArray(UsdGeom.Mesh(mesh).GetPointsAttr().Get())
+        bs_query = UsdSkel.BlendShapeQuery(UsdSkel.BindingAPI(mesh))
+        weights = skel_query.GetAnimQuery().ComputeBlendShapeWeights(frame)
+        sub_weights, bs_indices, sub_indices = bs_query.ComputeSubShapeWeights(
+            skinning.GetBlendShapeMapper().Remap(weights) if skinning.GetBlendShapeMapper() else weights)
+        bs_query.ComputeDeformedPoints(sub_weights, bs_indices, sub_indices,
+                                       bs_query.ComputeBlendShapePointIndices(),
+                                       bs_query.ComputeSubShapePointOffsets(), points)
+        assert skinning.ComputeSkinnedPoints(skel_query.ComputeSkinningTransforms(frame), points, frame)
+        np.testing.assert_allclose(vec3(points).astype(np.float64), usdskel_reference(prim, frame).astype(np.float64),
+                                   rtol=0, atol=1e-6, err_msg=f"{rel} frame {frame}")
+    lbs, dqs = usdskel_reference("/LBS", frame), usdskel_reference("/DQS", frame)
+    diff = float(np.abs(lbs.astype(np.float64) - dqs).max())
+    if frame == 1:
+        np.testing.assert_allclose(lbs.astype(np.float64), neutral_hand().astype(np.float64), rtol=0, atol=1e-6)
+    else:
+        assert diff > 1e-4, "dual quaternions should differ from linear blending"
 
 
 # ----------------------------------------------------------------------------

@@ -19,6 +19,7 @@ mod confine;
 mod curvenet_layer;
 mod error;
 mod read;
+mod skel;
 mod value;
 mod write;
 pub use write::{
@@ -30,3 +31,7 @@ pub use adjust::ADJUSTMENT_TYPE;
 pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;
 pub use read::Stage;
+pub use skel::{
+    BLEND_SHAPE_ORDER, BlendShapeOrder, CURVENET_JOINT_INDICES, CURVENET_JOINT_WEIGHTS, CURVENET_SKINNING,
+    CurvenetSkinning, SkinRig,
+};

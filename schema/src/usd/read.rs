@@ -21,7 +21,7 @@ pub const DEFAULT_SAMPLE_DENSITY: f64 = 5.0;
 ///
 /// Not `Send`: open it in the thread that reads it.
 pub struct Stage {
-    stage: usd::Stage,
+    pub(super) stage: usd::Stage,
     path: String,
 }
 
@@ -166,7 +166,7 @@ impl Stage {
         Ok(out)
     }
 
-    fn has_value(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
+    pub(super) fn has_value(&self, prim: &usd::Prim, name: &str) -> Result<bool> {
         prim.attribute(name).has_authored_value().map_err(|e| UsdError::contract(prim.path(), name, e.to_string()))
     }
 
@@ -296,7 +296,7 @@ impl Stage {
         })
     }
 
-    fn targets(&self, prim: &usd::Prim, rel: &str) -> Result<Vec<String>> {
+    pub(super) fn targets(&self, prim: &usd::Prim, rel: &str) -> Result<Vec<String>> {
         let targets =
             prim.relationship(rel).targets().map_err(|e| UsdError::contract(prim.path(), rel, e.to_string()))?;
         Ok(targets.iter().map(|t| t.as_str().to_string()).collect())

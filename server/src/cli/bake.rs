@@ -2,20 +2,30 @@
 //! deforms every mesh of a shot over a frame range and writes the points as
 //! an override layer (schema/README.md, "Bake output").
 //!
-//! 1. Every deformed mesh is bound once (`Binding::new` over one
-//!    `CurvenetLayout` per curvenet, sampled at the curvenet's density); the
-//!    meshes bind in parallel.
+//! 1. Every deformed mesh is bound once (`curvenet_core::Deformer::new`
+//!    through [`super::deformer`]: each curvenet sampled at its density, one
+//!    binding, the blend shapes); the meshes bind in parallel. A mesh with a
+//!    UsdSkel skin gets its rig ([`super::rig::MeshRig`]): the skinning of
+//!    the mesh and the spline skinning of the curvenets that ask for it,
+//!    precomputed once and handed to the deformer.
 //! 2. Frames go in chunks: the reading thread (the USD stage is not `Send`)
 //!    reads a chunk's posed pools, rest poses and blend-shape weights and
 //!    checks they are finite,
-//!    while the previous chunk solves on the thread pool, one `Workspace` per
-//!    worker, every (frame, mesh) pair an independent task. Results keep
-//!    frame order; the first failing frame in time order is reported. Blend
-//!    shapes are added after the deformation, mapped by each vertex's
-//!    interpolated deformation gradient (paper §5). Each curvenet's
-//!    `CurvenetAdjustment` children (Elemental's Curvenet Adjustments) are
-//!    read per frame and applied in the solve, on top of the posed pool or
-//!    knot tracking, in the knots' surface-relative frames.
+//!    while the previous chunk solves on the thread pool, every (frame, mesh)
+//!    pair an independent task: one `Deformer::frame` call, which owns the
+//!    per-frame policy (workspaces, skinning, blend shapes, adjustments). Results keep
+//!    frame order; the first failing frame in time order is reported.
+//!    A frame of a mesh is, in order: skinning of the mesh's points by the
+//!    frame's joint transforms (blend shapes added first, UsdSkel's order,
+//!    unless `curvenet:blendShapeOrder = "afterSolve"`) → the rest pose;
+//!    spline skinning → the posed pools of the skinned curvenets (the
+//!    others: their own samples, else knot tracking over the rest pose) →
+//!    each curvenet's `CurvenetAdjustment` children (Elemental's Curvenet
+//!    Adjustments, read per frame) on top of the posed pool or knot
+//!    tracking, in the knots' surface-relative frames → the solve → blend
+//!    shapes after the deformation, mapped by each vertex's interpolated
+//!    deformation gradient (paper §5), for meshes without a skin or asking
+//!    for `afterSolve`.
 //! 3. The points (f32) are written as `over` opinions, atomically: a
 //!    temporary file beside OUTPUT, synced, renamed over it. A failed bake
 //!    leaves neither OUTPUT nor a temporary file.
@@ -26,12 +36,13 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::{Adjustment, Binding, FrameInput, Workspace};
-use curvenet_schema::usd::{LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
+use curvenet_core::skinning::Mat4;
+use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Frame};
+use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
 use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use rayon::prelude::*;
 
+use super::rig::{JointReader, MeshRig};
 use super::{CliError, CliResult, net_list};
 
 /// Most frames' inputs held at once (two chunks: one solving, one read).
@@ -83,6 +94,12 @@ pub struct Args {
     /// No progress line and no summary.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Spline skinning with flexible G1 tangent ratios (Liu et al. 2015,
+    /// section 4): after the fixed-ratio fit, up to N alternating iterations
+    /// free the tangent length ratios at smooth junctions (0: off). The
+    /// summary reports the iterations done.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub g1_flexible: usize,
     /// Refuse (exit 2) a stage that opens any layer or asset (sublayers,
     /// references, payloads, at any depth) outside these directories, symlinks
     /// followed (repeatable). The service bakes with its --bake-root dirs.
@@ -123,13 +140,19 @@ pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
 struct MeshJob {
     mesh: MeshData,
     nets: Vec<CurvenetData>,
-    binding: Binding,
+    deformer: Deformer,
     /// Whether each frame's rest pose is read and passed to the solve (the
     /// mesh's `points` are animated or differ from the projection pose).
     reads_rest: bool,
-    /// The mesh's UsdSkel blend shapes, applied after the deformation in the
-    /// per-vertex frames of the interpolated gradients (paper §5).
-    shapes: BlendShapes,
+    /// Whether the mesh has blend shapes (the deformer holds them).
+    has_shapes: bool,
+    /// Where the blend shapes go: before skinning (the default for a mesh
+    /// skinned in process) or after the solve (the default otherwise).
+    mode: BlendShapeMode,
+    /// What reads the frame's joint transforms, when the mesh is skinned in process.
+    joints: Option<JointReader>,
+    /// A skinned mesh's bind pose when its `points` have no time samples.
+    bind_points: Option<Vec<[f64; 3]>>,
     /// The `CurvenetAdjustment` prims of each curvenet (binding order).
     adjustments: Vec<Vec<AdjustmentData>>,
 }
@@ -137,7 +160,11 @@ struct MeshJob {
 /// One mesh's input at one frame.
 struct MeshFrame {
     posed: Vec<Option<Vec<[f64; 3]>>>,
+    /// The rest pose read from the stage; for a skinned mesh, its points
+    /// before skinning (`None`: the bind pose read once).
     rest: Option<Vec<[f64; 3]>>,
+    /// A skinned mesh's skinning transforms this frame.
+    transforms: Option<Vec<Mat4>>,
     /// Blend-shape weights (empty when the mesh has no blend shapes).
     weights: Vec<f64>,
     /// The curvenets' adjustments at this frame (empty when there are none).
@@ -180,12 +207,46 @@ pub fn run(args: &Args) -> CliResult {
         .collect::<Result<Vec<_>, _>>()?;
 
     let t_bind = Instant::now();
+    // The rigs (and what else only the stage's thread can read), then the bindings in parallel.
+    let inputs = inputs
+        .into_iter()
+        .map(|(m, n, r)| {
+            let rig = MeshRig::new(&stage, &m, &n, args.g1_flexible)?;
+            let order = stage.blend_shape_order(&m)?.unwrap_or(match rig {
+                Some(_) => BlendShapeOrder::BeforeSkinning,
+                None => BlendShapeOrder::AfterSolve,
+            });
+            let bind_points = match (&rig, m.rest_sample_times.is_empty()) {
+                (Some(_), true) => Some(stage.rest_points(&m, None)?),
+                _ => None,
+            };
+            Ok((m, n, r, rig, order, bind_points))
+        })
+        .collect::<CliResult<Vec<_>>>()?;
+    for (m, _, _, rig, _, _) in &inputs {
+        if let Some(rig) = rig
+            && let Some(&p) = rig.unnormalized.first()
+        {
+            eprintln!(
+                "curvenet: warning: {}: the skin weights of {} point{} (the first: point {p}, sum {}) do not sum \
+                 to 1; they are skinned as authored, as usd-core does",
+                m.path,
+                rig.unnormalized.len(),
+                if rig.unnormalized.len() == 1 { "" } else { "s" },
+                rig.skinning.skin.influences().weight_sum(p)
+            );
+        }
+    }
     let jobs: Vec<MeshJob> = pool.install(|| {
-        inputs.into_par_iter().zip(adjustments).map(|((m, n, r), a)| bind(m, n, r, a)).collect::<CliResult<_>>()
+        inputs
+            .into_par_iter()
+            .zip(adjustments)
+            .map(|((m, n, r, rig, order, bind_points), a)| bind(m, n, r, rig, order, bind_points, a))
+            .collect::<CliResult<_>>()
     })?;
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
-        for w in job.binding.warnings() {
+        for w in job.deformer.binding().warnings() {
             eprintln!("curvenet: warning: {}: {w}", job.mesh.path);
         }
     }
@@ -195,13 +256,13 @@ pub fn run(args: &Args) -> CliResult {
         .iter()
         .map(|j| {
             24 * (j.nets.iter().map(|n| n.pool.len()).sum::<usize>()
-                + if j.reads_rest { j.binding.n_vertices() } else { 0 })
+                + if j.reads_rest { j.deformer.n_vertices() } else { 0 })
+                + j.joints.as_ref().map_or(0, |r| 128 * r.rig.joints.len())
         })
         .sum();
     let threads = pool.current_num_threads();
     let chunk = (4 * threads).min(MAX_CHUNK_FRAMES).min((CHUNK_BYTES / per_frame_bytes.max(1)).max(1));
     let progress = Progress::new(frames.len(), jobs.len(), args.quiet);
-    let workspaces = Workspaces::new(jobs.len());
     let solve_ns = AtomicU64::new(0);
     let mut baked: Vec<Vec<(f64, Vec<[f32; 3]>)>> = jobs.iter().map(|_| Vec::with_capacity(frames.len())).collect();
     let mut read_time = Duration::ZERO;
@@ -211,7 +272,7 @@ pub fn run(args: &Args) -> CliResult {
     read_time += t_read.elapsed();
     while let Some(current) = next.take() {
         let (solved, read) = std::thread::scope(|s| {
-            let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, &workspaces, &solve_ns, &progress)));
+            let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, &solve_ns, &progress)));
             let t_read = Instant::now();
             let read = chunks.next().map(|c| read_chunk(&stage, &jobs, c)).transpose();
             read_time += t_read.elapsed();
@@ -242,12 +303,14 @@ pub fn run(args: &Args) -> CliResult {
     let prims = jobs.iter().zip(baked).map(|(j, samples)| PrimPoints { prim: j.mesh.path.clone(), samples }).collect();
     write_points_overrides(&args.out, prims, range, &doc).map_err(write_error)?;
     let write_ms = ms(t_write.elapsed());
+    let (iterations, poses) =
+        jobs.iter().map(|j| j.deformer.flexible_stats()).fold((0, 0), |(i, p), f| (i + f.iterations, p + f.poses));
 
     if !args.quiet {
-        let vertices: usize = jobs.iter().map(|j| j.binding.n_vertices()).sum();
+        let vertices: usize = jobs.iter().map(|j| j.deformer.n_vertices()).sum();
         eprintln!(
             "curvenet: baked {} mesh{} ({vertices} vertices) x {} frame{} ({}) to {} in {:.2} s: bind {:.0} ms, \
-             mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms",
+             mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms{}",
             jobs.len(),
             if jobs.len() == 1 { "" } else { "es" },
             frames.len(),
@@ -260,6 +323,13 @@ pub fn run(args: &Args) -> CliResult {
             if threads == 1 { "" } else { "s" },
             ms(read_time),
             write_ms,
+            match poses {
+                0 => String::new(),
+                p => format!(
+                    ", G1-flexible spline skinning: {iterations} iterations over {p} curvenet poses ({:.1} each)",
+                    iterations as f64 / p as f64
+                ),
+            },
         );
     }
     Ok(())
@@ -290,6 +360,12 @@ pub(super) fn frames(
         .flat_map(|(m, nets, _)| m.rest_sample_times.iter().chain(nets.iter().flat_map(|n| &n.sample_times)))
         .copied()
         .collect();
+    // A skinned mesh: the animation's joint-transform samples.
+    for (m, _, _) in inputs {
+        if let Some(rig) = stage.skin_rig(m)? {
+            times.extend(&rig.time_samples);
+        }
+    }
     times.sort_by(f64::total_cmp);
     times.dedup();
     if times.is_empty() {
@@ -306,21 +382,27 @@ fn bind(
     mesh: MeshData,
     nets: Vec<CurvenetData>,
     reads_rest: bool,
+    rig: Option<MeshRig>,
+    order: BlendShapeOrder,
+    bind_points: Option<Vec<[f64; 3]>>,
     adjustments: Vec<Vec<AdjustmentData>>,
 ) -> CliResult<MeshJob> {
-    let n = mesh.projection_points.len();
-    let (binding, _analysis_ms) = super::bind_mesh(&mesh, &nets)?;
-    let shapes = mesh
-        .blend_shapes
-        .iter()
-        .map(|s| {
-            let inbetweens = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
-            BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), inbetweens)
-                .map_err(|source| CliError::Core { context: s.prim.clone(), source })
-        })
-        .collect::<CliResult<Vec<_>>>()?;
-    let shapes = BlendShapes::new(n, shapes);
-    Ok(MeshJob { mesh, nets, binding, reads_rest, shapes, adjustments })
+    // A skinned mesh reads its points per frame only when they are animated.
+    let reads_rest = match &rig {
+        Some(_) => !mesh.rest_sample_times.is_empty(),
+        None => reads_rest,
+    };
+    let (joints, skinning) = match rig {
+        Some(r) => (Some(r.joints), Some(r.skinning)),
+        None => (None, None),
+    };
+    let deformer = super::deformer(&mesh, &nets, skinning)?;
+    let mode = match order {
+        BlendShapeOrder::BeforeSkinning => BlendShapeMode::Before,
+        BlendShapeOrder::AfterSolve => BlendShapeMode::After,
+    };
+    let has_shapes = !mesh.blend_shapes.is_empty();
+    Ok(MeshJob { mesh, nets, deformer, reads_rest, has_shapes, mode, joints, bind_points, adjustments })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame
@@ -349,12 +431,19 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                         }
                         false => None,
                     };
-                    let weights = match job.shapes.is_empty() {
+                    let weights = match !job.has_shapes {
                         true => Vec::new(),
                         false => stage.blend_shape_weights(&job.mesh, Some(t)).map_err(at)?,
                     };
+                    let transforms = match &job.joints {
+                        Some(rig) => Some(rig.read_transforms(stage, Some(t)).map_err(|e| match e {
+                            CliError::Usd(u) => at(u),
+                            other => other,
+                        })?),
+                        None => None,
+                    };
                     let adjustments = stage.adjustments_at(&job.adjustments, Some(t)).map_err(at)?;
-                    Ok(MeshFrame { posed, rest, weights, adjustments })
+                    Ok(MeshFrame { posed, rest, transforms, weights, adjustments })
                 })
                 .collect::<CliResult<Vec<_>>>()?;
             Ok(FrameData { time: t, meshes })
@@ -378,88 +467,42 @@ fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: 
 fn solve_chunk(
     jobs: &[MeshJob],
     chunk: &[FrameData],
-    workspaces: &Workspaces,
     solve_ns: &AtomicU64,
     progress: &Progress,
 ) -> CliResult<Vec<Vec<Vec<[f32; 3]>>>> {
     let n = jobs.len();
     let solved: Vec<CliResult<Vec<[f32; 3]>>> = (0..chunk.len() * n)
         .into_par_iter()
-        .map_init(
-            || workspaces.lease(),
-            |lease, item| {
-                let (frame, k) = (&chunk[item / n], item % n);
-                let r = solve(&jobs[k], frame.time, &frame.meshes[k], lease.get(k, &jobs[k].binding), solve_ns);
-                progress.tick();
-                r
-            },
-        )
+        .map(|item| {
+            let (frame, k) = (&chunk[item / n], item % n);
+            let r = solve(&jobs[k], frame.time, &frame.meshes[k], solve_ns);
+            progress.tick();
+            r
+        })
         .collect();
     let mut solved = solved.into_iter();
     (0..chunk.len()).map(|_| solved.by_ref().take(n).collect()).collect()
 }
 
-fn solve(
-    job: &MeshJob,
-    t: f64,
-    input: &MeshFrame,
-    ws: &mut Workspace,
-    solve_ns: &AtomicU64,
-) -> CliResult<Vec<[f32; 3]>> {
+fn solve(job: &MeshJob, t: f64, input: &MeshFrame, solve_ns: &AtomicU64) -> CliResult<Vec<[f32; 3]>> {
     let t0 = Instant::now();
     let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
-    let n = job.binding.n_vertices();
-    let mut out = vec![[0.0; 3]; n];
-    let frame = FrameInput { posed: &posed, rest: input.rest.as_deref(), adjustments: &input.adjustments };
-    let context = || format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets));
-    // Gradients only when a blend shape is on at this frame.
-    let mut gradients = input.weights.iter().any(|&w| w != 0.0).then(|| vec![[0.0; 9]; n]);
-    job.binding
-        .deform(&frame, ws, &mut out, gradients.as_deref_mut())
-        .map_err(|source| CliError::Core { context: context(), source })?;
-    if let Some(g) = &gradients {
-        job.shapes
-            .add_deformed(&input.weights, g, &mut out)
-            .map_err(|source| CliError::Core { context: context(), source })?;
-    }
+    let frame = Frame {
+        posed: &posed,
+        // A skinned mesh's points before skinning: the frame's, else its bind pose.
+        rest: input.rest.as_deref().or(job.bind_points.as_deref()),
+        blend_shape_weights: (!input.weights.is_empty()).then_some(&input.weights[..]),
+        blend_shape_mode: job.mode,
+        adjustments: &input.adjustments,
+        joint_transforms: input.transforms.as_deref(),
+    };
+    let mut out = vec![[0.0; 3]; job.deformer.n_vertices()];
+    job.deformer.frame(&frame, &mut out, None).map_err(|source| CliError::Core {
+        context: format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets)),
+        source,
+    })?;
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
     Ok(out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect())
-}
-
-/// Workspaces reused across chunks: a worker leases one set (one lazily
-/// made workspace per mesh) and returns it when its task batch ends.
-struct Workspaces {
-    meshes: usize,
-    free: Mutex<Vec<Vec<Option<Workspace>>>>,
-}
-
-struct Lease<'a> {
-    owner: &'a Workspaces,
-    set: Vec<Option<Workspace>>,
-}
-
-impl Workspaces {
-    fn new(meshes: usize) -> Self {
-        Self { meshes, free: Mutex::new(Vec::new()) }
-    }
-
-    fn lease(&self) -> Lease<'_> {
-        let set = self.free.lock().unwrap_or_else(|e| e.into_inner()).pop();
-        Lease { owner: self, set: set.unwrap_or_else(|| (0..self.meshes).map(|_| None).collect()) }
-    }
-}
-
-impl Lease<'_> {
-    fn get(&mut self, k: usize, binding: &Binding) -> &mut Workspace {
-        self.set[k].get_or_insert_with(|| binding.workspace())
-    }
-}
-
-impl Drop for Lease<'_> {
-    fn drop(&mut self) {
-        let set = std::mem::take(&mut self.set);
-        self.owner.free.lock().unwrap_or_else(|e| e.into_inner()).push(set);
-    }
 }
 
 /// The progress line on a terminal (stderr), redrawn at most every 100 ms.

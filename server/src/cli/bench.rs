@@ -354,6 +354,7 @@ fn build(mesh: &MeshData, nets: &[CurvenetData], context: &str) -> CliResult<(De
         },
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
+        skinning: None,
         options: DeformerOptions::default(),
     };
     let clock = Stopwatch::start();

@@ -16,8 +16,9 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
+use curvenet_core::binding::surface::Surface;
 use curvenet_core::curvenet::CurveEnd;
-use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
+use curvenet_core::{Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingStats, BindingTimings};
 use curvenet_schema::{CurvenetData, MeshData};
@@ -80,9 +81,66 @@ struct MeshReport {
     curvenets: Vec<String>,
     blend_shapes: Vec<BlendShapeReport>,
     blend_shape_weights: Option<Vec<f64>>,
+    /// The UsdSkel rig that skins the mesh in process, and the spline
+    /// skinning of its curvenets.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rig: Option<RigReport>,
     /// With `--bind`: the binding of the mesh to its curvenets.
     #[serde(skip_serializing_if = "Option::is_none")]
     binding: Option<BindingReport>,
+}
+
+/// The rig found for a mesh (`super::rig::MeshRig`).
+#[derive(Serialize)]
+struct RigReport {
+    skel_root: String,
+    skeleton: String,
+    joints: Vec<String>,
+    animation: Option<String>,
+    /// Time codes of the animation's joint-transform samples.
+    animation_frames: usize,
+    method: &'static str,
+    influences_per_point: usize,
+    /// The influences were authored `constant` (one set for the whole mesh).
+    rigid: bool,
+    geom_bind_transform: [f64; 16],
+    /// Points whose skin weights do not sum to 1 (skinned as authored).
+    unnormalized_points: usize,
+    /// Blend shapes before skinning (UsdSkel's order) or after the solve.
+    blend_shape_order: &'static str,
+    curvenets: Vec<NetRigReport>,
+    /// Wall time of the spline skinning precomputation.
+    spline_precompute_ms: f64,
+}
+
+#[derive(Serialize)]
+struct NetRigReport {
+    path: String,
+    /// `weights` (per control point), `mesh` (from the mesh's skin weights)
+    /// or `none` (its own samples, else knot tracking).
+    skinning: &'static str,
+    /// The joints that weigh on the curvenet.
+    joints: Vec<String>,
+    /// `mesh`: the largest difference between the per-control-point weights
+    /// derived from the mesh's and the mesh's own, at samples of the curves.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    derived_weight_deviation: Option<f64>,
+    c1_junctions: usize,
+    g1_junctions: usize,
+    angle_junctions: usize,
+    /// With `--time`: the integrated distance (mean over arc length, and the
+    /// largest) of the spline-skinned and of the naively skinned control
+    /// points' curves to the densely skinned curves, over the mesh's diagonal.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    distance_at_time: Option<SkinDistanceReport>,
+}
+
+#[derive(Serialize)]
+struct SkinDistanceReport {
+    spline_mean: f64,
+    spline_max: f64,
+    naive_mean: f64,
+    naive_max: f64,
 }
 
 /// `inspect --bind`: what `Binding::new` built, and how long each stage took.
@@ -371,6 +429,7 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
         Some(_) if !m.blend_shapes.is_empty() => Some(stage.blend_shape_weights(m, time)?),
         _ => None,
     };
+    let rig = rig_report(stage, m, time)?;
     Ok(MeshReport {
         path: m.path.clone(),
         vertices: n,
@@ -392,49 +451,165 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
             })
             .collect(),
         blend_shape_weights,
+        rig,
         binding: None,
     })
 }
 
-/// Binds `m` as the bake does (`super::bind_mesh`). A core error is part of
+fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Option<RigReport>> {
+    use curvenet_core::skinning::JunctionKind;
+    let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+    let Some(rig) = super::rig::MeshRig::new(stage, m, &nets, 0)? else { return Ok(None) };
+    let transforms = match time {
+        Some(_) => Some(rig.joints.read_transforms(stage, time)?),
+        None => None,
+    };
+    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&m.projection_points);
+    let mut curvenets = Vec::new();
+    for ((net, nr), spline) in nets.iter().zip(&rig.nets).zip(&rig.skinning.curvenets) {
+        let (Some(nr), Some(spline)) = (nr, spline) else {
+            curvenets.push(NetRigReport {
+                path: net.path.clone(),
+                skinning: "none",
+                joints: Vec::new(),
+                derived_weight_deviation: None,
+                c1_junctions: 0,
+                g1_junctions: 0,
+                angle_junctions: 0,
+                distance_at_time: None,
+            });
+            continue;
+        };
+        let count = |f: fn(&JunctionKind) -> bool| spline.junctions().iter().filter(|j| f(&j.kind)).count();
+        let distance_at_time = match &transforms {
+            None => None,
+            Some(xf) => {
+                let core = |source| CliError::Core { context: net.path.clone(), source };
+                let mut fit = vec![[0.0; 3]; spline.n_points()];
+                let mut naive = fit.clone();
+                spline.pose(xf, &mut fit).map_err(core)?;
+                spline.pose_naive(xf, &mut naive).map_err(core)?;
+                let (a, b) = (
+                    spline.distance_to_skinned(&fit, xf).map_err(core)?,
+                    spline.distance_to_skinned(&naive, xf).map_err(core)?,
+                );
+                Some(SkinDistanceReport {
+                    spline_mean: a.mean / diagonal,
+                    spline_max: a.max / diagonal,
+                    naive_mean: b.mean / diagonal,
+                    naive_max: b.max / diagonal,
+                })
+            }
+        };
+        curvenets.push(NetRigReport {
+            path: net.path.clone(),
+            skinning: nr.mode,
+            joints: spline.joints().iter().map(|&j| rig.joints.rig.joints[j as usize].clone()).collect(),
+            derived_weight_deviation: nr.weight_deviation,
+            c1_junctions: count(|k| *k == JunctionKind::C1),
+            g1_junctions: count(|k| *k == JunctionKind::G1),
+            angle_junctions: count(|k| matches!(k, JunctionKind::Angle(_))),
+            distance_at_time,
+        });
+    }
+    let order = stage.blend_shape_order(m)?.unwrap_or(curvenet_schema::usd::BlendShapeOrder::BeforeSkinning);
+    Ok(Some(RigReport {
+        skel_root: rig.joints.rig.skel_root.clone(),
+        skeleton: rig.joints.rig.skeleton.clone(),
+        joints: rig.joints.rig.joints.clone(),
+        animation: rig.joints.rig.animation.clone(),
+        animation_frames: rig.joints.rig.time_samples.len(),
+        method: rig.joints.rig.method.token(),
+        influences_per_point: rig.joints.rig.element_size,
+        rigid: rig.joints.rig.constant_influences,
+        geom_bind_transform: rig.joints.rig.geom_bind_transform,
+        unnormalized_points: rig.unnormalized.len(),
+        blend_shape_order: match order {
+            curvenet_schema::usd::BlendShapeOrder::BeforeSkinning => "beforeSkinning",
+            curvenet_schema::usd::BlendShapeOrder::AfterSolve => "afterSolve",
+        },
+        curvenets,
+        spline_precompute_ms: rig.spline_ms,
+    }))
+}
+
+fn rig_text(s: &mut String, r: &RigReport) {
+    let short: Vec<&str> = r.joints.iter().map(|j| j.rsplit('/').next().unwrap_or(j)).collect();
+    let _ = writeln!(
+        s,
+        "  rig: skeleton {} ({} joints: {}) under {}, animation {} ({} frames), {}, {} influences per point{}, \
+         geomBindTransform {}, blend shapes {}",
+        r.skeleton,
+        r.joints.len(),
+        short.join(", "),
+        r.skel_root,
+        r.animation.as_deref().unwrap_or("none (rest pose)"),
+        r.animation_frames,
+        r.method,
+        r.influences_per_point,
+        if r.rigid { " (rigid: constant)" } else { "" },
+        if r.geom_bind_transform == curvenet_core::skinning::IDENTITY {
+            "identity".to_string()
+        } else {
+            format!("{:?}", r.geom_bind_transform)
+        },
+        r.blend_shape_order
+    );
+    if r.unnormalized_points > 0 {
+        let _ = writeln!(s, "    {} points' weights do not sum to 1 (skinned as authored)", r.unnormalized_points);
+    }
+    for c in &r.curvenets {
+        if c.skinning == "none" {
+            let _ = writeln!(s, "  curvenet {}: not spline-skinned (own samples, else knot tracking)", c.path);
+            continue;
+        }
+        let how = match c.derived_weight_deviation {
+            None => "weights per control point".to_string(),
+            Some(d) => format!("weights from the mesh, per control point, within {d:.3} of the mesh's"),
+        };
+        let _ = writeln!(
+            s,
+            "  curvenet {}: spline-skinned ({how}) by {}; constraints: {} C1, {} G1, {} angle",
+            c.path,
+            c.joints.iter().map(|j| j.rsplit('/').next().unwrap_or(j)).collect::<Vec<_>>().join(", "),
+            c.c1_junctions,
+            c.g1_junctions,
+            c.angle_junctions
+        );
+        if let Some(d) = &c.distance_at_time {
+            let _ = writeln!(
+                s,
+                "    distance to the skinned curves (x diagonal): spline skinning mean {:.3e}, max {:.3e}; naive control points mean {:.3e}, max {:.3e}",
+                d.spline_mean, d.spline_max, d.naive_mean, d.naive_max
+            );
+        }
+    }
+}
+
+/// Binds `m` as the bake does (`super::deformer`). A core error is part of
 /// the report (the command then exits 2); a stage that breaks the contract is
 /// an error of the command.
 fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
     let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
     let start = std::time::Instant::now();
-    let bound = super::bind_mesh(m, &nets);
+    let bound = super::deformer(m, &nets, None);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
-        Ok((b, analysis_ms)) => BindingReport {
-            stats: Some(BindingStats::from(&b.stats())),
-            timings: Some(BindingTimings::new(analysis_ms, &b.timings(), total_ms)),
-            warnings: b.warnings().iter().map(|w| w.to_string()).collect(),
+        Ok(d) => BindingReport {
+            stats: Some(BindingStats::from(&d.binding().stats())),
+            timings: Some(BindingTimings::new(d.timings().analysis_ms, &d.binding().timings(), total_ms)),
+            warnings: d.binding().warnings().iter().map(|w| w.to_string()).collect(),
             error: None,
         },
         Err(e) => BindingReport { stats: None, timings: None, warnings: Vec::new(), error: Some(e.to_string()) },
     })
 }
 
-/// A mesh's surface in its projection pose, built once for all the
-/// curvenets that target it.
-struct Surface {
-    path: String,
-    bvh: ClosestPointBvh,
-    mean_edge_length: f64,
-    diagonal: f64,
-}
-
-impl Surface {
-    fn new(m: &MeshData) -> Result<Self, curvenet_core::Error> {
-        let mesh = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())?;
-        let bvh = ClosestPointBvh::new(&mesh, &m.projection_points)?;
-        Ok(Self {
-            path: m.path.clone(),
-            bvh,
-            mean_edge_length: mesh.mean_edge_length(&m.projection_points),
-            diagonal: curvenet_core::mesh::bounding_box_diagonal(&m.projection_points),
-        })
-    }
+/// A mesh's surface in its projection pose (core's, as the bake samples
+/// against it), built once for all the curvenets that target it.
+fn surface(m: &MeshData) -> Result<Surface, curvenet_core::Error> {
+    let mesh = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())?;
+    Surface::new(&mesh, &m.projection_points)
 }
 
 fn curvenet_report(
@@ -500,9 +675,9 @@ fn curvenet_report(
                     meshes[m].path
                 ));
             }
-            let surface = surfaces[m].get_or_insert_with(|| Surface::new(&meshes[m]));
+            let surface = surfaces[m].get_or_insert_with(|| surface(&meshes[m]));
             let result = match surface {
-                Ok(surface) => analyse(c, surface, unused, &mut warnings),
+                Ok(surface) => analyse(c, &meshes[m].path, surface, unused, &mut warnings),
                 Err(e) => Err(e.clone()),
             };
             match result {
@@ -585,13 +760,15 @@ fn unused_control_points(c: &CurvenetData) -> Vec<u32> {
 /// The analysis of one curvenet (neutral pool) against `surface`.
 fn analyse(
     c: &CurvenetData,
+    mesh_path: &str,
     surface: &Surface,
     unused_control_points: Vec<u32>,
     warnings: &mut Vec<String>,
 ) -> Result<Analysis, curvenet_core::Error> {
     let net = Curvenet::new(&c.splines, &c.pool)?;
     let options = SamplingOptions::default().with_density(c.sample_density);
-    let layout = CurvenetLayout::with_closest_point(&net, &surface.bvh, surface.mean_edge_length, &options)?;
+    let layout =
+        CurvenetLayout::with_closest_point(&net, surface.closest_points(), surface.mean_edge_length(), &options)?;
     let topology = layout.topology();
     let sampling = layout.sampling();
     let samples = layout.neutral_samples();
@@ -624,12 +801,12 @@ fn analyse(
         let splines: Vec<CurveSplineReport> =
             curve.splines.iter().map(|s| CurveSplineReport { spline: s.spline, reversed: s.reversed }).collect();
         let names = spline_list(&splines);
-        if length < surface.mean_edge_length {
+        if length < surface.mean_edge_length() {
             warnings.push(format!(
                 "{}: curve {k} (spline{} {names}) is {length:.4} long, shorter than one mean mesh edge ({:.4})",
                 c.path,
                 plural(splines.len()),
-                surface.mean_edge_length
+                surface.mean_edge_length()
             ));
         }
         if n_segments < 2 {
@@ -650,9 +827,11 @@ fn analyse(
     }
 
     // Distance of every neutral sample from the surface, worst per spline.
-    let distances =
-        samples.iter().map(|&p| surface.bvh.closest_point(p).map(|h| h.distance)).collect::<Result<Vec<f64>, _>>()?;
-    let limit = FAR_FROM_SURFACE * surface.diagonal;
+    let distances = samples
+        .iter()
+        .map(|&p| surface.closest_points().closest_point(p).map(|h| h.distance))
+        .collect::<Result<Vec<f64>, _>>()?;
+    let limit = FAR_FROM_SURFACE * surface.diagonal();
     let (mut max_distance, mut max_spline) = (0.0f64, 0u32);
     for s in 0..c.splines.len() {
         let (sample, d) = sampling
@@ -667,18 +846,18 @@ fn analyse(
                 "{}: spline {s} is {d:.4} from the surface of {} at sample {sample} ({:.1}% of its bounding-box \
                  diagonal {:.4}; the limit is {:.0}%)",
                 c.path,
-                surface.path,
-                100.0 * d / surface.diagonal,
-                surface.diagonal,
+                mesh_path,
+                100.0 * d / surface.diagonal(),
+                surface.diagonal(),
                 100.0 * FAR_FROM_SURFACE
             ));
         }
     }
 
     Ok(Analysis {
-        mesh: surface.path.clone(),
-        mean_edge_length: surface.mean_edge_length,
-        bounding_box_diagonal: surface.diagonal,
+        mesh: mesh_path.to_string(),
+        mean_edge_length: surface.mean_edge_length(),
+        bounding_box_diagonal: surface.diagonal(),
         control_points: c.pool.len(),
         unused_control_points,
         splines: c.splines.len(),
@@ -741,6 +920,9 @@ fn text(r: &Report) -> String {
             m.rest_pose_frames
         );
         let _ = writeln!(s, "  curvenets: {}", m.curvenets.join(", "));
+        if let Some(r) = &m.rig {
+            rig_text(&mut s, r);
+        }
         if let Some(b) = &m.binding {
             binding_text(&mut s, b);
         }

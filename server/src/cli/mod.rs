@@ -4,6 +4,7 @@ pub mod bake;
 pub mod bench;
 pub mod draft;
 pub mod inspect;
+pub mod rig;
 pub mod serve;
 pub mod stitch;
 
@@ -46,44 +47,51 @@ fn is_transient(message: &str) -> bool {
 
 pub type CliResult<T = ()> = Result<T, CliError>;
 
-/// Binds `mesh` (its projection pose) to its curvenets as the bake and
-/// `inspect --bind` do: each curvenet sampled at its own density against the
-/// mesh's surface, then one [`curvenet_core::Binding`] over all of them.
-/// Errors name the curvenet or the mesh.
-pub fn bind_mesh(
+/// The deformer of `mesh` (its projection pose, its blend shapes) and its
+/// curvenets, as the bake and `inspect --bind` build it: through
+/// [`curvenet_core::Deformer::new`], each curvenet sampled at its own density
+/// against the mesh's surface, then one binding over all of them; `skinning`
+/// is the rig underneath when the mesh is skinned in process
+/// ([`rig::MeshRig`]). Errors name the blend shape, the curvenet or the mesh.
+pub fn deformer(
     mesh: &curvenet_schema::MeshData,
     nets: &[curvenet_schema::CurvenetData],
-) -> CliResult<(curvenet_core::Binding, f64)> {
-    use curvenet_core::binding::surface::Surface;
-    use curvenet_core::{BindOptions, Binding, Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
-    let core = |context: String| move |source| CliError::Core { context, source };
+    skinning: Option<curvenet_core::deformer::Rig>,
+) -> CliResult<curvenet_core::Deformer> {
+    use curvenet_core::blend_shapes::BlendShape;
+    use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput};
     let n = mesh.projection_points.len();
-    let topology =
-        PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).map_err(core(mesh.path.clone()))?;
-    // One surface (validation, face planes, closest-point BVH) serves the
-    // curvenets' sampling and the binding.
-    let t0 = std::time::Instant::now();
-    let surface = Surface::new(&topology, &mesh.projection_points).map_err(core(mesh.path.clone()))?;
-    let surface_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let t1 = std::time::Instant::now();
-    let layouts = nets
+    let blend_shapes = mesh
+        .blend_shapes
         .iter()
-        .map(|net| {
-            let context = || format!("{} (bound to {})", net.path, mesh.path);
-            let c = Curvenet::new(&net.splines, &net.pool).map_err(core(context()))?;
-            let options = SamplingOptions::default().with_density(net.sample_density);
-            CurvenetLayout::with_closest_point(&c, surface.closest_points(), surface.mean_edge_length(), &options)
-                .map_err(core(context()))
+        .map(|s| {
+            let inbetweens = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
+            BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), inbetweens)
+                .map_err(|source| CliError::Core { context: s.prim.clone(), source })
         })
         .collect::<CliResult<Vec<_>>>()?;
-    let analysis_ms = t1.elapsed().as_secs_f64() * 1e3;
-    let refs: Vec<&CurvenetLayout> = layouts.iter().collect();
-    let binding = Binding::with_surface(surface, &refs, &BindOptions::default(), surface_ms).map_err(core(format!(
-        "{} (binding {})",
-        mesh.path,
-        net_list(nets)
-    )))?;
-    Ok((binding, analysis_ms))
+    let curvenets: Vec<CurvenetInput<'_>> = nets
+        .iter()
+        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
+        .collect();
+    let input = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &mesh.face_vertex_counts,
+            face_vertex_indices: &mesh.face_vertex_indices,
+            projection_points: &mesh.projection_points,
+        },
+        curvenets: &curvenets,
+        blend_shapes,
+        skinning,
+        options: DeformerOptions::default(),
+    };
+    Deformer::new(&input).map_err(|e| match e {
+        curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
+            context: format!("{} (bound to {})", nets[curvenet as usize].path, mesh.path),
+            source: *source,
+        },
+        source => CliError::Core { context: format!("{} (binding {})", mesh.path, net_list(nets)), source },
+    })
 }
 
 /// `/A/Net, /B/Net`: the curvenets' paths for messages.

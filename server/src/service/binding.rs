@@ -246,6 +246,7 @@ pub fn build(
         },
         curvenets: &curvenets,
         blend_shapes,
+        skinning: None,
         options: DeformerOptions::default().with_bind(options.bind_options(cancel)),
     };
     let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;

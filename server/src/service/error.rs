@@ -276,6 +276,12 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
     let other = |s: &SegmentRef| Some(SegmentId { curvenet: s.curvenet, spline: s.spline, segment: s.segment });
     let what = |w: &str| Some(w.to_string());
     match e {
+        // The rig underneath (skinning) is read from USD by the command line;
+        // the service takes no rig yet, so this names the input it refused.
+        E::Skinning(_) => {
+            d.what = what("skinning");
+            Code::InvalidParameter
+        }
         E::Empty { what: w } => {
             d.what = what(w);
             Code::EmptyInput
@@ -470,6 +476,7 @@ fn is_mesh_error(e: &curvenet_core::Error) -> bool {
         | E::FoldedFace { .. }
         | E::RepeatedFaceVertex { .. } => true,
         E::Empty { .. }
+        | E::Skinning(_)
         | E::IndexOutOfRange { .. }
         | E::NonFinite { .. }
         | E::NonFiniteScalar { .. }

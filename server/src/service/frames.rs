@@ -289,6 +289,7 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
             BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
         },
         adjustments: &[],
+        joint_transforms: None,
     };
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);

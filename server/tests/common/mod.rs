@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// The shipped shot.
+#[allow(dead_code)]
 pub const SHOT: &str = "fixtures/shots/hand_wave/shot.usda";
 
 /// The repository root (the binary runs there).
