@@ -346,3 +346,35 @@ fn a_curve_folding_back_over_itself_in_projection_binds() {
     let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0] + 0.1, p[1] - 0.2, p[2] + 0.3]).collect();
     assert!(max_error(&out, &shifted) <= 1e-9 * diag);
 }
+
+/// A spline drawn twice (the same four control points again, as a
+/// copy-paste leaves it) and a curvenet bound twice are refused naming both
+/// copies: bound, the second copy would silently move nothing.
+#[test]
+fn a_curve_drawn_twice_and_a_curvenet_bound_twice_are_refused() {
+    let (mesh, pts) = heightfield(20, |_, _| 0.0);
+    let mut net = NetBuilder::default();
+    net.spline([0.1, 0.5, 0.01], [0.3, 0.55, 0.01], [0.6, 0.45, 0.01], [0.9, 0.5, 0.01]);
+    net.segment([0.5, 0.1, 0.01], [0.5, 0.9, 0.01], [0.0; 3]);
+    assert!(bind(&mesh, &pts, &net, false).is_ok(), "the curvenet binds once");
+    // The first spline again, reversed, over copies of its points.
+    let mut doubled = NetBuilder::default();
+    doubled.points = net.points.clone();
+    doubled.splines = net.splines.clone();
+    let n = doubled.points.len() as u32;
+    doubled.points.extend(net.points.clone());
+    let mut copy = net.splines[0].map(|i| i + n);
+    copy.reverse();
+    doubled.splines.push(copy);
+    let e = bind(&mesh, &pts, &doubled, false).unwrap_err();
+    let Error::CurvesOverlap { segment, other } = e else { panic!("{e}") };
+    assert_eq!((segment.curvenet, segment.spline, other.curvenet, other.spline), (0, 2, 0, 0), "{e}");
+    println!("drawn twice: {e}");
+    // One curvenet bound twice.
+    let c = Curvenet::new(&net.splines, &net.points).unwrap();
+    let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
+    let e = Binding::new(&mesh, &pts, &[&layout, &layout], &BindOptions::default()).unwrap_err();
+    let Error::CurvesOverlap { segment, other } = e else { panic!("{e}") };
+    assert_eq!((segment.curvenet, other.curvenet), (1, 0), "{e}");
+    println!("bound twice: {e}");
+}

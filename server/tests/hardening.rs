@@ -272,6 +272,11 @@ fn hostile_frames_get_their_4xx_at_once_with_bounded_memory() {
         let one = json!({"arrays": []});
         json!({ "frames": vec![one; 100_000] })
     };
+    // Empty JSON frames whose answer would fit the default 256 MiB limit as
+    // f32 (90% of it) but not as JSON text (about four times as large).
+    let n_vertices = hand().projection_points.len() as u64;
+    let json_frames = (0.9 * (256u64 << 20) as f64 / (12 * n_vertices) as f64) as usize;
+    let many_empty_json_frames = json!({ "frames": vec![json!({}); json_frames] });
     let big_pose: Vec<f32> = pool_f32.iter().map(|x| x * 1e6).collect();
     let mut overflow_data = big_pose.clone();
     overflow_data.push(-1e6);
@@ -333,6 +338,13 @@ fn hostile_frames_get_their_4xx_at_once_with_bounded_memory() {
         (
             "100k empty frames in a batch",
             post_binary(addr, &format!("{frames}:batch"), &binary_frame(&many_empty_frames, &[])),
+            422,
+            "limit_exceeded",
+            "--max-batch-bytes",
+        ),
+        (
+            "a JSON batch whose f32 would fit but whose JSON would not",
+            post_json(addr, &format!("{frames}:batch"), &many_empty_json_frames),
             422,
             "limit_exceeded",
             "--max-batch-bytes",

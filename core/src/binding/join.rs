@@ -42,8 +42,35 @@ impl Joined {
     }
 }
 
-/// Joins `curvenets` in order.
-pub(crate) fn join(curvenets: &[&CurvenetLayout]) -> Joined {
+/// Refuses a spline drawn twice: two splines, in one curvenet or in two
+/// (a curvenet bound twice), over the same four control-point positions,
+/// in either direction. Bound, they would cut the surface along one path,
+/// and the second copy would silently move nothing. (Curves that only run
+/// together over part of their length bind with a `curves_touch` warning.)
+fn check_duplicate_splines(curvenets: &[&CurvenetLayout]) -> Result<()> {
+    let mut seen: HashMap<[[u64; 3]; 4], (u32, u32)> = HashMap::default();
+    for (k, layout) in curvenets.iter().enumerate() {
+        let pool = layout.neutral_pool();
+        for (s, spline) in layout.sampling().splines().iter().enumerate() {
+            let mut key = spline.map(|i| pool[i as usize].map(f64::to_bits));
+            let mut reversed = key;
+            reversed.reverse();
+            key = key.min(reversed);
+            if let Some(&(c, t)) = seen.get(&key) {
+                return Err(Error::CurvesOverlap {
+                    segment: SegmentRef { curvenet: k as u32, spline: s as u32, segment: 0 },
+                    other: SegmentRef { curvenet: c, spline: t, segment: 0 },
+                });
+            }
+            seen.insert(key, (k as u32, s as u32));
+        }
+    }
+    Ok(())
+}
+
+/// Joins `curvenets` in order (refusing a spline drawn twice).
+pub(crate) fn join(curvenets: &[&CurvenetLayout]) -> Result<Joined> {
+    check_duplicate_splines(curvenets)?;
     let mut j = Joined::default();
     let mut n_curves = 0u32;
     for (k, layout) in curvenets.iter().enumerate() {
@@ -77,5 +104,5 @@ pub(crate) fn join(curvenets: &[&CurvenetLayout]) -> Joined {
         j.n_slots += layout.constraints().len() as u32;
         n_curves += layout.sampling().n_curves() as u32;
     }
-    j
+    Ok(j)
 }

@@ -349,7 +349,7 @@ impl Binding {
         let cancel = &options.cancel;
         cancel.check("cutting")?;
         let t1 = Instant::now();
-        let joined = join::join(curvenets);
+        let joined = join::join(curvenets)?;
         let input = CutInput {
             samples: &joined.samples,
             segments: &joined.segments,

@@ -106,7 +106,11 @@ pub(crate) async fn answer(
     batch: bool,
 ) -> Result<Response, ServiceError> {
     let max_batch_bytes = state.config().max_batch_bytes;
-    let numbering = if batch { Numbering::Batch { max_bytes: max_batch_bytes } } else { Numbering::One };
+    let numbering = if batch {
+        Numbering::Batch { max_bytes: max_batch_bytes, json: matches!(form, Form::Json) }
+    } else {
+        Numbering::One
+    };
     let out = solve_frames(
         state,
         admission,

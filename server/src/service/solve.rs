@@ -22,9 +22,9 @@ pub(crate) enum Numbering {
     One,
     /// One frame, named `name: ` (`/deform`: `frame`).
     Named(&'static str),
-    /// A batch: `frames[i]: ` and `details.frame`; its answer may hold at
-    /// most `max_bytes` of f32 data (`--max-batch-bytes`).
-    Batch { max_bytes: u64 },
+    /// A batch: `frames[i]: ` and `details.frame`; its answer (JSON or
+    /// binary) may hold at most `max_bytes` (`--max-batch-bytes`).
+    Batch { max_bytes: u64, json: bool },
 }
 
 impl Numbering {
@@ -57,8 +57,8 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
             for (i, f) in frames.iter().enumerate() {
                 frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
             }
-            if let Numbering::Batch { max_bytes } = numbering {
-                check_batch_size(&entry, &frames, max_bytes)?;
+            if let Numbering::Batch { max_bytes, json } = numbering {
+                check_batch_size(&entry, &frames, max_bytes, json)?;
             }
             let solved: Vec<Solved> = if parallel > 1 && frames.len() > 1 {
                 let chunk = frames.len().div_ceil(parallel).max(1);
@@ -95,12 +95,22 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
     Ok(out)
 }
 
-/// Refuses a batch whose answer would hold more than `max` bytes of f32
-/// data (frames × vertices × 12, 48 with gradients) before solving it: the
-/// answer, unlike the request, is not bounded by the body limit.
-fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64) -> Result<(), ServiceError> {
+/// Bytes per vertex a batch answer is counted at: binary f32 (a point 12,
+/// its gradient 36), and JSON, where serde_json writes an f32 in at most 15
+/// characters (`-1.2345678e-38`) plus a separator: a point `[x,y,z],` at
+/// most 50, a gradient's nine numbers and brackets at most 150.
+const BINARY_BYTES: (u64, u64) = (12, 36);
+const JSON_BYTES: (u64, u64) = (50, 150);
+
+/// Refuses a batch whose answer would hold more than `max` bytes (frames ×
+/// vertices × the bytes per vertex of the answer's form, gradients
+/// included) before solving it: the answer, unlike the request, is not
+/// bounded by the body limit, and a JSON answer is about four times a
+/// binary one.
+fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Result<(), ServiceError> {
     let v = entry.binding().n_vertices() as u64;
-    let bytes: u64 = frames.iter().map(|f| v * if f.gradients { 48 } else { 12 }).sum();
+    let (point, gradient) = if json { JSON_BYTES } else { BINARY_BYTES };
+    let bytes: u64 = frames.iter().map(|f| v * if f.gradients { point + gradient } else { point }).sum();
     if bytes > max {
         return Err(ServiceError::new(
             Code::LimitExceeded,
