@@ -341,13 +341,15 @@ fn far_self_overlapping_and_nonmanifold_inputs_are_typed_errors() {
     let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
     let e = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap_err();
     assert!(matches!(e, Error::SampleFarFromSurface { .. }), "{e}");
-    // Two curvenets over the same place overlap: bound with a warning, refused in strict mode.
+    // One curvenet bound twice: refused in either mode, naming both copies
+    // (bound, the second copy moved nothing: a silently wrong mesh).
     let c = Curvenet::new(&net.splines, &net.points).unwrap();
     let l1 = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
-    let b = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default()).unwrap();
-    assert!(b.warnings().iter().any(|w| matches!(w, BindWarning::CurvesTouch { .. })), "{:?}", b.warnings());
-    let e = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default().with_strict(true)).unwrap_err();
-    assert!(matches!(e, Error::CurvesOverlap { .. } | Error::CurvesCross { .. }), "{e}");
+    for strict in [false, true] {
+        let e = Binding::new(&mesh, &pts, &[&l1, &l1], &BindOptions::default().with_strict(strict)).unwrap_err();
+        let Error::CurvesOverlap { segment, other } = e else { panic!("strict {strict}: {e}") };
+        assert_eq!((segment.curvenet, other.curvenet), (1, 0), "{e}");
+    }
     // A non-manifold mesh: a third triangle on an edge of the hand.
     let mut counts: Vec<u32> = mesh.face_vertex_counts().collect();
     let mut idx = mesh.face_vertex_indices().to_vec();
