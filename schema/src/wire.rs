@@ -431,6 +431,48 @@ pub struct FrameRequest {
     /// refused (`topology_changed`) instead of deforming the wrong mesh.
     #[serde(default)]
     pub topology_hash: Option<String>,
+    /// Curvenet Adjustments, applied in order on top of whatever poses the
+    /// curvenets (the posed pools, or knot tracking to the rest pose when a
+    /// curvenet is not articulated). Absent or empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adjustments: Vec<AdjustmentSpec>,
+    /// Also return every knot's orientation (`knot_orientations`): the
+    /// frames the adjustments are expressed in.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub orientations: bool,
+}
+
+/// One Curvenet Adjustment: a knot (a spline endpoint) moved in its
+/// orientation frame, so "up" follows the surface. Every field but
+/// `curvenet` and `knot` is optional and defaults to no change.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AdjustmentSpec {
+    /// The curvenet, by its index in the binding request's `curvenets`.
+    pub curvenet: u32,
+    /// The knot, by its index in the curvenet's pool; it must be a spline endpoint.
+    pub knot: u32,
+    /// Translate in the knot's frame; default `[0, 0, 0]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<[f64; 3]>,
+    /// Rotate about the knot in its frame, Euler angles in degrees, applied
+    /// about X, then Y, then Z (USD's `rotateXYZ`); default `[0, 0, 0]`.
+    /// Acts on the knot's attached tangents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<[f64; 3]>,
+    /// Scale about the knot in its frame; default `[1, 1, 1]`. Acts on the
+    /// knot's attached tangents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<[f64; 3]>,
+    /// Whether the knot's tangent control points move, rotate and scale
+    /// with it; default `true`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attach_tangents: Option<bool>,
+    /// One translate per tangent control point of the knot, in the knot's
+    /// frame, in the order the tangents appear in the pool; absent or
+    /// empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tangent_translates: Vec<[f64; 3]>,
 }
 
 /// One deformed frame.
@@ -443,6 +485,12 @@ pub struct FrameResponse {
     pub gradients: Option<Vec<[f32; 9]>>,
     /// The solve's wall time, milliseconds.
     pub solve_ms: f64,
+    /// When the frame asked for `orientations`: one object per curvenet,
+    /// mapping each knot's pool index (a string key, e.g. `"12"`) to its
+    /// orientation in this frame (row-major 3×3; its columns are the knot
+    /// frame's axes), in the pose the frame's adjustments act on (before them).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub knot_orientations: Option<Vec<std::collections::BTreeMap<String, [f64; 9]>>>,
 }
 
 /// `POST /v1/bindings/{id}/frames:batch` (JSON form).
@@ -631,6 +679,12 @@ pub struct BinaryFrameHeader {
     pub gradients: bool,
     #[serde(default)]
     pub topology_hash: Option<String>,
+    /// Curvenet Adjustments, as in [`FrameRequest::adjustments`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adjustments: Vec<AdjustmentSpec>,
+    /// Also return the knots' orientations, as in [`FrameRequest::orientations`].
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub orientations: bool,
 }
 
 /// The JSON header of one binary frame response.
@@ -638,4 +692,7 @@ pub struct BinaryFrameHeader {
 pub struct BinaryResponseHeader {
     pub arrays: Vec<BinaryArray>,
     pub solve_ms: f64,
+    /// As in [`FrameResponse::knot_orientations`], when asked for.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub knot_orientations: Option<Vec<std::collections::BTreeMap<String, [f64; 9]>>>,
 }

@@ -97,6 +97,8 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
             mode: h.blend_shape_mode,
             gradients: h.gradients,
             topology_hash: h.topology_hash,
+            adjustments: h.adjustments.iter().map(crate::frames::adjustment).collect(),
+            orientations: h.orientations,
             ..Frame::default()
         };
         for p in plan {
@@ -271,7 +273,7 @@ fn response_header(s: &Solved) -> BinaryResponseHeader {
             shape: vec![g.len() as u64, 9],
         });
     }
-    BinaryResponseHeader { arrays, solve_ms: s.solve_ms }
+    BinaryResponseHeader { arrays, solve_ms: s.solve_ms, knot_orientations: s.knot_orientations.clone() }
 }
 
 /// Encodes solved frames: one frame's header, or `{"frames": [...]}` for a batch.
