@@ -330,3 +330,30 @@ async fn bad_knots_are_422_naming_them() {
     let (status, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::BAD_REQUEST, "{}", String::from_utf8_lossy(&body));
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_viewer_frame_draws_the_adjusted_curvenet() {
+    let app = app(state());
+    let id = bind(&app).await;
+    let posed = posed_pool(-8.0);
+    let (wire, core) = adjustments();
+    let uri = format!("/v1/bindings/{id}/viewer-frame");
+    let view = |body: &[u8]| -> Value { serde_json::from_slice(body).unwrap() };
+    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let adjusted = view(&body);
+    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed]}))).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let plain = view(&body);
+
+    let b = reference().binding();
+    let pool = b.adjusted_pool(0, Some(&posed), None, &core).unwrap();
+    let (samples, _) = b.curvenet_pose(0, Some(&pool), None).unwrap();
+    let want: Vec<f32> = samples.iter().flat_map(|p| p.map(|x| x as f32)).collect();
+    let got: Vec<f32> = serde_json::from_value(adjusted["curvenets"][0]["samples"].clone()).unwrap();
+    assert_eq!(got, want, "the samples drawn are those of the adjusted pool");
+    assert_ne!(adjusted["curvenets"][0]["samples"], plain["curvenets"][0]["samples"]);
+    let points: Vec<f32> = serde_json::from_value(adjusted["points"].clone()).unwrap();
+    let solved: Vec<f32> = solve_reference(&posed, &core).into_iter().flatten().collect();
+    assert_eq!(points, solved);
+}
