@@ -65,8 +65,67 @@ pub struct BindingRequest {
     /// UsdSkel blend shapes of the mesh; frames give one weight per shape.
     #[serde(default)]
     pub blend_shapes: Vec<BlendShapeSpec>,
+    /// The rig underneath (UsdSkel skin of the mesh, spline skinning of the
+    /// curvenets); frames then carry `joint_transforms`. Absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skin: Option<SkinSpec>,
     #[serde(default)]
     pub options: BindingOptions,
+}
+
+/// How a skinned mesh blends its joints (UsdSkel `skel:skinningMethod`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SkinMethod {
+    /// `classicLinear`: linear blend skinning (the default).
+    #[default]
+    ClassicLinear,
+    /// `dualQuaternion`: dual-quaternion skinning.
+    DualQuaternion,
+}
+
+/// The mesh's skin (UsdSkel form) and the curvenets' spline skinning. A
+/// frame's `joint_transforms` (one skinning transform per joint, in the
+/// mesh's space) skin the frame's rest pose (or the projection pose) and
+/// pose the spline-skinned curvenets.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SkinSpec {
+    /// The skeleton's joint count (every joint index is below it).
+    pub joints: u32,
+    /// Influences per mesh point (`primvars:skel:jointIndices` element size).
+    pub element_size: u32,
+    /// `element_size` joint indices per mesh point.
+    pub joint_indices: Vec<i64>,
+    /// `element_size` weights per mesh point; a point's weights summing to 1
+    /// within 1e-4 are rescaled to sum to 1 exactly.
+    pub joint_weights: Vec<f64>,
+    /// `primvars:skel:geomBindTransform`, row-major with row vectors (USD's
+    /// layout, translation in the last row); absent: the identity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geom_bind_transform: Option<[f64; 16]>,
+    #[serde(default)]
+    pub method: SkinMethod,
+    /// One entry per curvenet (in `curvenets` order), or empty: none is
+    /// spline-skinned.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub curvenets: Vec<CurvenetSkinSpec>,
+    /// G¹-flexible spline-skinning iterations (0: the fixed-ratio fit, as
+    /// `curvenet bake` by default).
+    #[serde(default)]
+    pub flexible_iterations: u32,
+}
+
+/// How one curvenet follows the skeleton.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(tag = "mode", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CurvenetSkinSpec {
+    /// Not spline-skinned: its posed pool, else knot tracking.
+    None,
+    /// Spline skinning with weights per control point (`element_size` per pool point).
+    Weights { element_size: u32, joint_indices: Vec<i64>, joint_weights: Vec<f64> },
+    /// Spline skinning with weights taken from the mesh's skin at the curves.
+    Mesh,
 }
 
 impl BindingRequest {
@@ -101,6 +160,7 @@ impl BindingRequest {
                         .collect(),
                 })
                 .collect(),
+            skin: None,
             options: BindingOptions::default(),
         }
     }
@@ -440,6 +500,11 @@ pub struct FrameRequest {
     /// frames the adjustments are expressed in.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub orientations: bool,
+    /// The skinning transforms of this frame, one per joint of the
+    /// binding's `skin` (row-major 4×4, row vectors, in the mesh's space:
+    /// UsdSkel's skinning transforms); absent: no skinning this frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_transforms: Option<Vec<[f64; 16]>>,
 }
 
 /// One Curvenet Adjustment: a knot (a spline endpoint) moved in its

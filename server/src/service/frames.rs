@@ -20,7 +20,7 @@ use curvenet_schema::wire::{
 };
 
 use crate::binary;
-use crate::binding::{MAX_WEIGHT, check_points};
+use crate::binding::{MAX_COORDINATE, MAX_WEIGHT, check_points};
 use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
@@ -42,6 +42,8 @@ pub struct Frame {
     pub adjustments: Vec<Adjustment>,
     /// Whether to answer every knot's orientation.
     pub orientations: bool,
+    /// The frame's skinning transforms, one per joint of the binding's skin.
+    pub joint_transforms: Option<Vec<[f64; 16]>>,
 }
 
 /// A wire adjustment as core's: absent fields are no change.
@@ -68,6 +70,7 @@ impl From<FrameRequest> for Frame {
             topology_hash: r.topology_hash,
             adjustments: r.adjustments.iter().map(adjustment).collect(),
             orientations: r.orientations,
+            joint_transforms: r.joint_transforms,
         }
     }
 }
@@ -270,6 +273,40 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         }
         check_points(rest, "rest")?;
     }
+    if let Some(t) = &frame.joint_transforms {
+        let joints = entry.deformer.rig().map(|r| r.skin.influences().n_joints());
+        let Some(joints) = joints else {
+            return Err(ServiceError::new(
+                Code::Unsupported,
+                "joint_transforms: the binding has no skin (post the binding with `skin` to skin frames)",
+            )
+            .detail(|d| d.what = Some("joint_transforms".into())));
+        };
+        if t.len() != joints {
+            return Err(ServiceError::new(
+                Code::CountMismatch,
+                format!("joint_transforms has {} transforms, but the binding's skin has {joints} joints", t.len()),
+            )
+            .detail(count("joint_transforms", joints, t.len())));
+        }
+        if let Some(i) = t.iter().position(|m| !m.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE)) {
+            return Err(ServiceError::new(
+                Code::NonFinite,
+                format!("joint_transforms[{i}] has a value that is not finite or beyond {MAX_COORDINATE:e}"),
+            )
+            .detail(|d| {
+                d.what = Some("joint_transforms".into());
+                d.index = Some(i);
+            }));
+        }
+        if frame.orientations {
+            return Err(ServiceError::new(
+                Code::Unsupported,
+                "orientations with joint_transforms: knot orientations of a skinned frame are not answered yet",
+            )
+            .detail(|d| d.what = Some("orientations".into())));
+        }
+    }
     if let Some(w) = &frame.weights {
         let n_shapes = entry.n_shapes();
         if w.len() != n_shapes {
@@ -316,7 +353,7 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
             BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
         },
         adjustments: &frame.adjustments,
-        joint_transforms: None,
+        joint_transforms: frame.joint_transforms.as_deref(),
     };
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
