@@ -714,8 +714,9 @@ pub struct HealthResponse {
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BinaryArray {
-    /// `posed` (with `index`: the curvenet), `rest` or `blend_shape_weights`
-    /// in requests; `points` or `gradients` in responses.
+    /// `posed` (with `index`: the curvenet), `rest`, `blend_shape_weights` or
+    /// `joint_transforms` (`[J, 16]`) in requests; `points` or `gradients`
+    /// in responses.
     pub name: String,
     /// The curvenet of a `posed` array.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -723,7 +724,8 @@ pub struct BinaryArray {
     /// Only `f32` (little-endian; `float32` and `<f4` are accepted too).
     #[serde(default = "default_dtype")]
     pub dtype: String,
-    /// `[n, 3]` for points, `[n, 9]` for gradients, `[k]` for weights.
+    /// `[n, 3]` for points, `[n, 9]` for gradients, `[k]` for weights,
+    /// `[J, 16]` for joint transforms.
     pub shape: Vec<u64>,
 }
 

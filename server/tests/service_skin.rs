@@ -172,3 +172,60 @@ async fn joint_transforms_over_http_answer_the_bake_of_the_rigged_shot() {
         (Value::from("unsupported"), Value::from("joint_transforms"))
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn joint_transforms_travel_in_the_binary_form() {
+    // The same frame as JSON and as binary f32 arrays: the binary answer is
+    // the JSON answer to a frame whose transforms and weights were rounded to f32.
+    let shot = Shot::new();
+    let app = app(AppState::new(Config { solve_threads: 2, ..Config::default() }, None).unwrap());
+    let (status, body) = send(&app, "/v1/bindings", &shot.request).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let id = serde_json::from_slice::<BindingResponse>(&body).unwrap().binding_id;
+    let uri = format!("/v1/bindings/{id}/frames");
+    let mut frame = shot.frame(5.0);
+    assert!(frame.rest.is_none(), "the shot's mesh has no animated points");
+    let round = |x: &f64| *x as f32 as f64;
+    let transforms: Vec<Mat4> = frame.joint_transforms.take().unwrap().iter().map(|m| m.map(|x| round(&x))).collect();
+    let weights: Vec<f64> = frame.blend_shape_weights.take().unwrap().iter().map(round).collect();
+    frame.joint_transforms = Some(transforms.clone());
+    frame.blend_shape_weights = Some(weights.clone());
+    let (status, body) = send(&app, &uri, &frame).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let json_points = serde_json::from_slice::<FrameResponse>(&body).unwrap().points;
+
+    let header = serde_json::json!({"arrays": [
+        {"name": "joint_transforms", "shape": [transforms.len(), 16]},
+        {"name": "blend_shape_weights", "shape": [weights.len()]},
+    ], "blend_shape_mode": "before"});
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
+    bin.extend_from_slice(&h);
+    for x in transforms.iter().flatten().chain(&weights) {
+        bin.extend_from_slice(&(*x as f32).to_le_bytes());
+    }
+    let req =
+        Request::post(&uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
+    let r = app.clone().oneshot(req).await.unwrap();
+    assert_eq!(r.status(), StatusCode::OK);
+    let body = axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap();
+    let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
+    let data: Vec<f32> = body[4 + hl..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    let points: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    assert_eq!(points, json_points);
+
+    // A binary joint_transforms array of the wrong length names it.
+    let header = serde_json::json!({"arrays": [{"name": "joint_transforms", "shape": [2, 16]}]});
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
+    bin.extend_from_slice(&h);
+    bin.extend(std::iter::repeat_n(0u8, 2 * 16 * 4));
+    let req =
+        Request::post(&uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
+    let r = app.clone().oneshot(req).await.unwrap();
+    assert_eq!(r.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    let body = axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap();
+    let v: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(v["code"], "count_mismatch");
+    assert!(v["message"].as_str().unwrap().contains("joint_transforms"), "{}", v["message"]);
+}

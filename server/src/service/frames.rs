@@ -180,7 +180,9 @@ fn parse(
         Form::Binary => {
             let b = entry.binding();
             let pools: Vec<usize> = (0..b.n_curvenets()).map(|k| b.n_control_points(k)).collect();
-            let expected = binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), max_frames };
+            let joints = entry.deformer.rig().map(|r| r.skin.influences().n_joints());
+            let expected =
+                binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), joints, max_frames };
             let (frames, is_batch) = binary::parse(bytes, &expected)?;
             if is_batch != batch {
                 return Err(ServiceError::new(
