@@ -65,8 +65,67 @@ pub struct BindingRequest {
     /// UsdSkel blend shapes of the mesh; frames give one weight per shape.
     #[serde(default)]
     pub blend_shapes: Vec<BlendShapeSpec>,
+    /// The rig underneath (UsdSkel skin of the mesh, spline skinning of the
+    /// curvenets); frames then carry `joint_transforms`. Absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skin: Option<SkinSpec>,
     #[serde(default)]
     pub options: BindingOptions,
+}
+
+/// How a skinned mesh blends its joints (UsdSkel `skel:skinningMethod`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SkinMethod {
+    /// `classicLinear`: linear blend skinning (the default).
+    #[default]
+    ClassicLinear,
+    /// `dualQuaternion`: dual-quaternion skinning.
+    DualQuaternion,
+}
+
+/// The mesh's skin (UsdSkel form) and the curvenets' spline skinning. A
+/// frame's `joint_transforms` (one skinning transform per joint, in the
+/// mesh's space) skin the frame's rest pose (or the projection pose) and
+/// pose the spline-skinned curvenets.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SkinSpec {
+    /// The skeleton's joint count (every joint index is below it).
+    pub joints: u32,
+    /// Influences per mesh point (`primvars:skel:jointIndices` element size).
+    pub element_size: u32,
+    /// `element_size` joint indices per mesh point.
+    pub joint_indices: Vec<i64>,
+    /// `element_size` weights per mesh point; a point's weights summing to 1
+    /// within 1e-4 are rescaled to sum to 1 exactly.
+    pub joint_weights: Vec<f64>,
+    /// `primvars:skel:geomBindTransform`, row-major with row vectors (USD's
+    /// layout, translation in the last row); absent: the identity.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geom_bind_transform: Option<[f64; 16]>,
+    #[serde(default)]
+    pub method: SkinMethod,
+    /// One entry per curvenet (in `curvenets` order), or empty: none is
+    /// spline-skinned.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub curvenets: Vec<CurvenetSkinSpec>,
+    /// G¹-flexible spline-skinning iterations (0: the fixed-ratio fit, as
+    /// `curvenet bake` by default).
+    #[serde(default)]
+    pub flexible_iterations: u32,
+}
+
+/// How one curvenet follows the skeleton.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(tag = "mode", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CurvenetSkinSpec {
+    /// Not spline-skinned: its posed pool, else knot tracking.
+    None,
+    /// Spline skinning with weights per control point (`element_size` per pool point).
+    Weights { element_size: u32, joint_indices: Vec<i64>, joint_weights: Vec<f64> },
+    /// Spline skinning with weights taken from the mesh's skin at the curves.
+    Mesh,
 }
 
 impl BindingRequest {
@@ -101,6 +160,7 @@ impl BindingRequest {
                         .collect(),
                 })
                 .collect(),
+            skin: None,
             options: BindingOptions::default(),
         }
     }
@@ -431,6 +491,53 @@ pub struct FrameRequest {
     /// refused (`topology_changed`) instead of deforming the wrong mesh.
     #[serde(default)]
     pub topology_hash: Option<String>,
+    /// Curvenet Adjustments, applied in order on top of whatever poses the
+    /// curvenets (the posed pools, or knot tracking to the rest pose when a
+    /// curvenet is not articulated). Absent or empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adjustments: Vec<AdjustmentSpec>,
+    /// Also return every knot's orientation (`knot_orientations`): the
+    /// frames the adjustments are expressed in.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub orientations: bool,
+    /// The skinning transforms of this frame, one per joint of the
+    /// binding's `skin` (row-major 4×4, row vectors, in the mesh's space:
+    /// UsdSkel's skinning transforms); absent: no skinning this frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_transforms: Option<Vec<[f64; 16]>>,
+}
+
+/// One Curvenet Adjustment: a knot (a spline endpoint) moved in its
+/// orientation frame, so "up" follows the surface. Every field but
+/// `curvenet` and `knot` is optional and defaults to no change.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AdjustmentSpec {
+    /// The curvenet, by its index in the binding request's `curvenets`.
+    pub curvenet: u32,
+    /// The knot, by its index in the curvenet's pool; it must be a spline endpoint.
+    pub knot: u32,
+    /// Translate in the knot's frame; default `[0, 0, 0]`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub translate: Option<[f64; 3]>,
+    /// Rotate about the knot in its frame, Euler angles in degrees, applied
+    /// about X, then Y, then Z (USD's `rotateXYZ`); default `[0, 0, 0]`.
+    /// Acts on the knot's attached tangents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotate: Option<[f64; 3]>,
+    /// Scale about the knot in its frame; default `[1, 1, 1]`. Acts on the
+    /// knot's attached tangents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scale: Option<[f64; 3]>,
+    /// Whether the knot's tangent control points move, rotate and scale
+    /// with it; default `true`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub attach_tangents: Option<bool>,
+    /// One translate per tangent control point of the knot, in the knot's
+    /// frame, in the order the tangents appear in the pool; absent or
+    /// empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tangent_translates: Vec<[f64; 3]>,
 }
 
 /// One deformed frame.
@@ -443,6 +550,12 @@ pub struct FrameResponse {
     pub gradients: Option<Vec<[f32; 9]>>,
     /// The solve's wall time, milliseconds.
     pub solve_ms: f64,
+    /// When the frame asked for `orientations`: one object per curvenet,
+    /// mapping each knot's pool index (a string key, e.g. `"12"`) to its
+    /// orientation in this frame (row-major 3×3; its columns are the knot
+    /// frame's axes), in the pose the frame's adjustments act on (before them).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub knot_orientations: Option<Vec<std::collections::BTreeMap<String, [f64; 9]>>>,
 }
 
 /// `POST /v1/bindings/{id}/frames:batch` (JSON form).
@@ -601,8 +714,9 @@ pub struct HealthResponse {
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BinaryArray {
-    /// `posed` (with `index`: the curvenet), `rest` or `blend_shape_weights`
-    /// in requests; `points` or `gradients` in responses.
+    /// `posed` (with `index`: the curvenet), `rest`, `blend_shape_weights` or
+    /// `joint_transforms` (`[J, 16]`) in requests; `points` or `gradients`
+    /// in responses.
     pub name: String,
     /// The curvenet of a `posed` array.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -610,7 +724,8 @@ pub struct BinaryArray {
     /// Only `f32` (little-endian; `float32` and `<f4` are accepted too).
     #[serde(default = "default_dtype")]
     pub dtype: String,
-    /// `[n, 3]` for points, `[n, 9]` for gradients, `[k]` for weights.
+    /// `[n, 3]` for points, `[n, 9]` for gradients, `[k]` for weights,
+    /// `[J, 16]` for joint transforms.
     pub shape: Vec<u64>,
 }
 
@@ -631,6 +746,12 @@ pub struct BinaryFrameHeader {
     pub gradients: bool,
     #[serde(default)]
     pub topology_hash: Option<String>,
+    /// Curvenet Adjustments, as in [`FrameRequest::adjustments`].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub adjustments: Vec<AdjustmentSpec>,
+    /// Also return the knots' orientations, as in [`FrameRequest::orientations`].
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub orientations: bool,
 }
 
 /// The JSON header of one binary frame response.
@@ -638,4 +759,7 @@ pub struct BinaryFrameHeader {
 pub struct BinaryResponseHeader {
     pub arrays: Vec<BinaryArray>,
     pub solve_ms: f64,
+    /// As in [`FrameResponse::knot_orientations`], when asked for.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub knot_orientations: Option<Vec<std::collections::BTreeMap<String, [f64; 9]>>>,
 }

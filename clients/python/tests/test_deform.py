@@ -117,3 +117,40 @@ def test_a_batch_over_the_servers_body_limit_is_split(start_server, baked: dict)
         with pytest.raises(PayloadTooLargeError) as e:
             binding.deform(rest=np.zeros((limit // 12 + 1, 3)))
         assert e.value.code == "payload_too_large" and e.value.status == 413
+
+
+def test_adjustments_and_knot_orientations_in_both_forms(server: Server) -> None:
+    """A Curvenet Adjustment moves the surface the same in the binary and
+    JSON forms; identity adjustments change nothing; the orientations are
+    one rotation per knot of each curvenet, the same in both forms."""
+    mesh, _, frames = shot_frames("hand_wave")
+    splines = np.asarray(mesh.request.curvenets[0].splines)
+    knot = int(splines[0][0])
+    adjust = [{"curvenet": 0, "knot": knot, "translate": [0.0, 0.004, 0.0], "rotate": [0.0, 0.0, 20.0]}]
+    f = frames[3]
+    results = {}
+    for protocol in ("binary", "json"):
+        with Client(server.url, protocol=protocol) as client:
+            binding = client.bind(mesh.request)
+            plain, adjusted, identity = binding.solve(
+                [
+                    Frame(f.posed, f.rest, f.blend_shape_weights),
+                    Frame(f.posed, f.rest, f.blend_shape_weights, adjustments=adjust, orientations=True),
+                    Frame(f.posed, f.rest, f.blend_shape_weights, adjustments=[{"curvenet": 0, "knot": knot}]),
+                ]
+            )
+        assert np.array_equal(identity.points, plain.points)
+        assert np.abs(adjusted.points - plain.points).max() > 1e-3
+        assert plain.knot_orientations is None
+        orientations = adjusted.knot_orientations
+        assert orientations is not None and len(orientations) == 1
+        knots = set(splines[:, 0].tolist()) | set(splines[:, 3].tolist())
+        assert set(orientations[0]) == knots
+        for m in orientations[0].values():
+            assert np.allclose(m @ m.T, np.eye(3), atol=1e-9) and np.linalg.det(m) > 0
+        results[protocol] = adjusted
+    # Binary sends float32 inputs, JSON float64: the surfaces agree to float32 precision.
+    assert np.abs(results["binary"].points - results["json"].points).max() < 1e-5
+    assert results["binary"].knot_orientations is not None and results["json"].knot_orientations is not None
+    for k, m in results["json"].knot_orientations[0].items():
+        assert np.allclose(results["binary"].knot_orientations[0][k], m, atol=1e-5)

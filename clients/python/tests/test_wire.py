@@ -119,6 +119,28 @@ def test_binary_request_matches_the_documented_framing() -> None:
         encode_frames([Frame(posed=[np.zeros((3, 2))])], gradients=False, batch=False)
 
 
+def test_adjustments_travel_in_the_header_and_orientations_decode() -> None:
+    adjust = [{"curvenet": 0, "knot": 12, "translate": [0.0, 1.0, 0.0], "attach_tangents": False}]
+    raw = encode_frames([Frame(adjustments=adjust, orientations=True)], gradients=False, batch=False)
+    (h,) = struct.unpack_from("<I", raw)
+    header = json.loads(raw[4 : 4 + h])
+    assert header["adjustments"] == adjust and header["orientations"] is True
+    plain = json.loads(encode_frames([Frame()], gradients=False, batch=False)[4:])
+    assert "adjustments" not in plain and "orientations" not in plain
+
+    rotation = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    head = {"arrays": [{"name": "points", "dtype": "f32", "shape": [1, 3]}], "solve_ms": 1.0,
+            "knot_orientations": [{"12": rotation}]}
+    body = json.dumps(head).encode()
+    (one,) = decode_frames(struct.pack("<I", len(body)) + body + np.zeros(3, "<f4").tobytes(), batch=False)
+    assert one.knot_orientations is not None
+    assert np.array_equal(one.knot_orientations[0][12], np.asarray(rotation).reshape(3, 3))
+    head["knot_orientations"] = [{"12": [1.0, 2.0]}]
+    body = json.dumps(head).encode()
+    with pytest.raises(ProtocolError, match="knot_orientations"):
+        decode_frames(struct.pack("<I", len(body)) + body + np.zeros(3, "<f4").tobytes(), batch=False)
+
+
 def answer(frames: list[tuple[np.ndarray, np.ndarray | None]], batch: bool, pad: bool = True) -> bytes:
     headers, data = [], []
     for points, grads in frames:

@@ -38,6 +38,8 @@ pub struct Expected<'a> {
     pub pools: &'a [usize],
     pub vertices: usize,
     pub blend_shapes: usize,
+    /// Joints of the binding's skin (`None`: no skin).
+    pub joints: Option<usize>,
     /// Most frames a batch may hold (see `bounded`).
     pub max_frames: usize,
 }
@@ -82,7 +84,10 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
                     "arrays[{a}] ({}) of shape [{}{}] needs {} bytes but only {} remain",
                     p.kind.name(),
                     p.rows,
-                    if p.kind.width() == 3 { ", 3" } else { "" },
+                    match p.kind.width() {
+                        1 => String::new(),
+                        w => format!(", {w}"),
+                    },
                     p.rows * p.kind.width() * 4,
                     p.remaining
                 );
@@ -97,6 +102,8 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
             mode: h.blend_shape_mode,
             gradients: h.gradients,
             topology_hash: h.topology_hash,
+            adjustments: h.adjustments.iter().map(crate::frames::adjustment).collect(),
+            orientations: h.orientations,
             ..Frame::default()
         };
         for p in plan {
@@ -114,6 +121,17 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
                     frame.weights =
                         Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect())
                 }
+                Kind::Joints => {
+                    frame.joint_transforms = Some(
+                        raw.chunks_exact(64)
+                            .map(|m| {
+                                std::array::from_fn(|i| {
+                                    f32::from_le_bytes([m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]]) as f64
+                                })
+                            })
+                            .collect(),
+                    )
+                }
             }
         }
         frames.push(frame);
@@ -126,6 +144,7 @@ enum Kind {
     Posed(usize),
     Rest,
     Weights,
+    Joints,
 }
 
 impl Kind {
@@ -133,6 +152,7 @@ impl Kind {
         match self {
             Kind::Posed(_) | Kind::Rest => 3,
             Kind::Weights => 1,
+            Kind::Joints => 16,
         }
     }
     fn name(self) -> &'static str {
@@ -140,6 +160,7 @@ impl Kind {
             Kind::Posed(_) => "posed",
             Kind::Rest => "rest",
             Kind::Weights => "blend_shape_weights",
+            Kind::Joints => "joint_transforms",
         }
     }
 }
@@ -179,9 +200,10 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
             }
             "rest" => Kind::Rest,
             "blend_shape_weights" => Kind::Weights,
+            "joint_transforms" => Kind::Joints,
             other => {
                 return Err(malformed(format!(
-                    "arrays[{a}] is named {other:?}; expected posed (with index), rest or blend_shape_weights"
+                    "arrays[{a}] is named {other:?}; expected posed (with index), rest, blend_shape_weights or joint_transforms"
                 )));
             }
         };
@@ -192,9 +214,13 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
             }));
         }
         let rows = match (kind.width(), array.shape.as_slice()) {
-            (3, &[n, 3]) | (1, &[n]) => n,
+            (3, &[n, 3]) | (1, &[n]) | (16, &[n, 16]) => n,
             _ => {
-                let what = if kind.width() == 3 { "[n, 3]" } else { "[k]" };
+                let what = match kind.width() {
+                    3 => "[n, 3]",
+                    16 => "[j, 16]",
+                    _ => "[k]",
+                };
                 return Err(malformed(format!(
                     "arrays[{a}] ({}) has shape {:?}; expected {what}",
                     array.name, array.shape
@@ -208,6 +234,16 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
             ),
             Kind::Rest => {
                 (expected.vertices, format!("rest has {rows} points, but the mesh has {} vertices", expected.vertices))
+            }
+            Kind::Joints => {
+                let Some(joints) = expected.joints else {
+                    return Err(ServiceError::new(
+                        Code::Unsupported,
+                        format!("arrays[{a}]: joint_transforms, but the binding has no skin"),
+                    )
+                    .detail(|d| d.what = Some("joint_transforms".into())));
+                };
+                (joints, format!("joint_transforms has {rows} transforms, but the binding's skin has {joints} joints"))
             }
             Kind::Weights => (
                 expected.blend_shapes,
@@ -271,7 +307,7 @@ fn response_header(s: &Solved) -> BinaryResponseHeader {
             shape: vec![g.len() as u64, 9],
         });
     }
-    BinaryResponseHeader { arrays, solve_ms: s.solve_ms }
+    BinaryResponseHeader { arrays, solve_ms: s.solve_ms, knot_orientations: s.knot_orientations.clone() }
 }
 
 /// Encodes solved frames: one frame's header, or `{"frames": [...]}` for a batch.

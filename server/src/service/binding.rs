@@ -6,10 +6,18 @@
 
 use curvenet_core::binding::CutOptions;
 use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::deformer::Rig;
+use curvenet_core::skinning::{
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skin, SkinningMethod, SplineSkinning,
+    SplineSkinningOptions, SurfaceWeights,
+};
 use curvenet_core::{
     BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput, PolyMesh,
 };
-use curvenet_schema::wire::{BindingRequest, BindingResponse, BindingStats, BindingTimings, Warning};
+use curvenet_core::{ClosestPointBvh, skinning};
+use curvenet_schema::wire::{
+    BindingRequest, BindingResponse, BindingStats, BindingTimings, CurvenetSkinSpec, SkinMethod, SkinSpec, Warning,
+};
 
 use crate::cache::{Entry, Key, hex};
 use crate::error::{Code, Phase, ServiceError};
@@ -233,6 +241,10 @@ pub fn build(
         blend_shapes.capacity() * std::mem::size_of::<BlendShape>()
             + blend_shapes.iter().map(BlendShape::heap_bytes).sum::<usize>()
     };
+    let rig = match &req.skin {
+        Some(skin) => Some(build_rig(req, skin)?),
+        None => None,
+    };
     let curvenets: Vec<CurvenetInput<'_>> = req
         .curvenets
         .iter()
@@ -246,7 +258,7 @@ pub fn build(
         },
         curvenets: &curvenets,
         blend_shapes,
-        skinning: None,
+        skinning: rig,
         options: DeformerOptions::default().with_bind(options.bind_options(cancel)),
     };
     let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;
@@ -284,6 +296,80 @@ pub fn build(
         response,
         size_bytes,
     })
+}
+
+/// Skin weights of a point that sum to 1 within this are rescaled to sum to
+/// 1 exactly (float rounding), as `curvenet bake` does (cli/rig.rs).
+pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-4;
+
+/// The rig of `req` (its `skin`): the mesh's influences and skin, and the
+/// spline skinning of the curvenets that ask for it, as `curvenet bake`
+/// builds them from UsdSkel (cli/rig.rs). Errors name the field.
+fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError> {
+    let bind = |what: String| move |e: curvenet_core::Error| ServiceError::core(e, Phase::Bind).context(&what);
+    let n = req.projection_points.len();
+    let n_joints = skin.joints as usize;
+    if !skin.curvenets.is_empty() && skin.curvenets.len() != req.curvenets.len() {
+        return Err(ServiceError::new(
+            Code::CountMismatch,
+            format!(
+                "skin.curvenets has {} entries, but there are {} curvenets (one each, or none)",
+                skin.curvenets.len(),
+                req.curvenets.len()
+            ),
+        )
+        .detail(|d| {
+            d.what = Some("skin.curvenets".into());
+            d.expected = Some(req.curvenets.len());
+            d.got = Some(skin.curvenets.len());
+        }));
+    }
+    let mut influences =
+        Influences::new(n, skin.element_size as usize, &skin.joint_indices, &skin.joint_weights, n_joints)
+            .map_err(bind("skin".into()))?;
+    influences.renormalize(WEIGHT_SUM_TOLERANCE);
+    let geom_bind = skin.geom_bind_transform.unwrap_or(skinning::IDENTITY);
+    let options = SplineSkinningOptions::default();
+    let mut surface: Option<ClosestPointBvh> = None;
+    let mut splines = Vec::with_capacity(req.curvenets.len());
+    for (k, net) in req.curvenets.iter().enumerate() {
+        let context = format!("skin.curvenets[{k}]");
+        let field = match skin.curvenets.get(k) {
+            None | Some(CurvenetSkinSpec::None) => {
+                splines.push(None);
+                continue;
+            }
+            Some(CurvenetSkinSpec::Weights { element_size, joint_indices, joint_weights }) => {
+                let cp =
+                    Influences::new(net.pool.len(), *element_size as usize, joint_indices, joint_weights, n_joints)
+                        .map_err(bind(context.clone()))?;
+                ControlPointWeights::new(cp)
+            }
+            Some(CurvenetSkinSpec::Mesh) => {
+                if surface.is_none() {
+                    let topo = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, n)
+                        .map_err(bind("mesh".into()))?;
+                    surface = Some(ClosestPointBvh::new(&topo, &req.projection_points).map_err(bind("mesh".into()))?);
+                }
+                let Some(bvh) = surface.as_ref() else {
+                    return Err(ServiceError::internal("the surface of the mesh was not built"));
+                };
+                let weights = SurfaceWeights::new(bvh, &influences).map_err(bind(context.clone()))?;
+                ControlPointWeights::from_surface(&net.pool, &net.splines, &weights, DERIVED_WEIGHT_SAMPLES)
+                    .map_err(bind(context.clone()))?
+                    .0
+            }
+        };
+        let spline = SplineSkinning::new(&net.pool, &net.splines, &field, &geom_bind, &options)
+            .map_err(bind(context.clone()))?;
+        splines.push(Some(spline));
+    }
+    let method = match skin.method {
+        SkinMethod::ClassicLinear => SkinningMethod::ClassicLinear,
+        SkinMethod::DualQuaternion => SkinningMethod::DualQuaternion,
+    };
+    let skin_core = Skin::new(influences, geom_bind, method).map_err(bind("skin".into()))?;
+    Ok(Rig { skin: skin_core, curvenets: splines, flexible_iterations: skin.flexible_iterations as usize })
 }
 
 /// Bytes of an entry besides its measured arrays: the entry, its strings

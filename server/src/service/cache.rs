@@ -15,7 +15,7 @@
 use std::sync::Arc;
 
 use curvenet_core::{Binding, Deformer};
-use curvenet_schema::wire::{BindingRequest, BindingResponse};
+use curvenet_schema::wire::{BindingRequest, BindingResponse, CurvenetSkinSpec};
 use moka::future::Cache;
 use moka::notification::RemovalCause;
 use moka::policy::EvictionPolicy;
@@ -207,6 +207,15 @@ impl Writer {
     }
 }
 
+fn skin_influences(w: &mut Writer, joint_indices: &[i64], joint_weights: &[f64]) {
+    w.u64(joint_indices.len() as u64);
+    for i in joint_indices {
+        w.bytes(&i.to_le_bytes());
+    }
+    w.u64(joint_weights.len() as u64);
+    joint_weights.iter().for_each(|x| w.f64(*x));
+}
+
 /// blake3 of the topology alone.
 pub fn topology_key(req: &BindingRequest) -> Key {
     let mut w = Writer::new("curvenet topology v1");
@@ -251,6 +260,34 @@ pub fn binding_key(req: &BindingRequest, options: &EffectiveOptions) -> Key {
             for ib in &s.inbetweens {
                 w.f64(ib.weight);
                 w.points(&ib.offsets);
+            }
+        }
+    }
+    if let Some(skin) = &req.skin {
+        // Absent, nothing is written: the ids of bindings without a rig are unchanged.
+        w.bytes(b"skin");
+        w.u64(skin.joints as u64);
+        w.u64(skin.element_size as u64);
+        skin_influences(&mut w, &skin.joint_indices, &skin.joint_weights);
+        match &skin.geom_bind_transform {
+            Some(m) => {
+                w.u64(1);
+                m.iter().for_each(|x| w.f64(*x));
+            }
+            None => w.u64(0),
+        }
+        w.u64(skin.method as u64);
+        w.u64(skin.flexible_iterations as u64);
+        w.u64(skin.curvenets.len() as u64);
+        for c in &skin.curvenets {
+            match c {
+                CurvenetSkinSpec::None => w.u64(0),
+                CurvenetSkinSpec::Mesh => w.u64(1),
+                CurvenetSkinSpec::Weights { element_size, joint_indices, joint_weights } => {
+                    w.u64(2);
+                    w.u64(*element_size as u64);
+                    skin_influences(&mut w, joint_indices, joint_weights);
+                }
             }
         }
     }

@@ -298,6 +298,17 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
             d.got = Some(*got);
             Code::CountMismatch
         }
+        // An adjustment naming a curvenet or control point past the end: the
+        // adjustment and what it names (the service adds the curvenet of a knot).
+        E::IndexOutOfRange { what: "adjustment", index, target, value, .. } => {
+            d.adjustment = Some(*index);
+            if *target == "curvenet" {
+                d.curvenet = Some(*value);
+            } else {
+                d.control_point = Some(*value);
+            }
+            Code::IndexOutOfRange
+        }
         E::IndexOutOfRange { what: w, index, .. } => {
             d.what = what(w);
             d.index = Some(*index);

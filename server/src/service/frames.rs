@@ -12,10 +12,15 @@ use axum::body::Bytes;
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use curvenet_schema::wire::{BlendShapeMode, ErrorBody, FrameBatchResponse, FrameRequest, FrameResponse};
+use std::collections::BTreeMap;
+
+use curvenet_core::adjust::{Adjustment, Rotate};
+use curvenet_schema::wire::{
+    AdjustmentSpec, BlendShapeMode, ErrorBody, FrameBatchResponse, FrameRequest, FrameResponse,
+};
 
 use crate::binary;
-use crate::binding::{MAX_WEIGHT, check_points};
+use crate::binding::{MAX_COORDINATE, MAX_WEIGHT, check_points};
 use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
@@ -33,6 +38,25 @@ pub struct Frame {
     pub mode: BlendShapeMode,
     pub gradients: bool,
     pub topology_hash: Option<String>,
+    /// Curvenet Adjustments, in request order (checked by core: knots named).
+    pub adjustments: Vec<Adjustment>,
+    /// Whether to answer every knot's orientation.
+    pub orientations: bool,
+    /// The frame's skinning transforms, one per joint of the binding's skin.
+    pub joint_transforms: Option<Vec<[f64; 16]>>,
+}
+
+/// A wire adjustment as core's: absent fields are no change.
+pub fn adjustment(a: &AdjustmentSpec) -> Adjustment {
+    let mut out = Adjustment::new(a.curvenet as usize, a.knot)
+        .with_translate(a.translate.unwrap_or([0.0; 3]))
+        .with_rotate(Rotate::EulerXyz(a.rotate.unwrap_or([0.0; 3])))
+        .with_scale(a.scale.unwrap_or([1.0; 3]))
+        .with_tangent_translates(a.tangent_translates.clone());
+    if let Some(attach) = a.attach_tangents {
+        out = out.with_attach_tangents(attach);
+    }
+    out
 }
 
 impl From<FrameRequest> for Frame {
@@ -44,6 +68,9 @@ impl From<FrameRequest> for Frame {
             mode: r.blend_shape_mode,
             gradients: r.gradients,
             topology_hash: r.topology_hash,
+            adjustments: r.adjustments.iter().map(adjustment).collect(),
+            orientations: r.orientations,
+            joint_transforms: r.joint_transforms,
         }
     }
 }
@@ -53,6 +80,8 @@ pub struct Solved {
     pub points: Vec<[f64; 3]>,
     pub gradients: Option<Vec<[f64; 9]>>,
     pub solve_ms: f64,
+    /// Per curvenet, knot pool index → row-major orientation (when asked).
+    pub knot_orientations: Option<Vec<BTreeMap<String, [f64; 9]>>>,
 }
 
 impl Solved {
@@ -61,6 +90,7 @@ impl Solved {
             points: self.points.iter().map(|p| p.map(|x| x as f32)).collect(),
             gradients: self.gradients.map(|g| g.iter().map(|m| m.map(|x| x as f32)).collect()),
             solve_ms: self.solve_ms,
+            knot_orientations: self.knot_orientations,
         }
     }
 }
@@ -83,7 +113,7 @@ impl Solved {
         (status = 409, description = "topology_changed", body = ErrorBody),
         (status = 413, description = "payload_too_large", body = ErrorBody),
         (status = 415, description = "unsupported_media_type", body = ErrorBody),
-        (status = 422, description = "count_mismatch, non_finite, index_out_of_range, invalid_parameter, degenerate_pose (details: curvenet, spline, segment, control_point, what, index)", body = ErrorBody),
+        (status = 422, description = "count_mismatch, non_finite, index_out_of_range, invalid_parameter, degenerate_pose; a bad adjustment names it (details: adjustment, curvenet, control_point); details: curvenet, spline, segment, control_point, what, index", body = ErrorBody),
         (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
     ))]
 pub(crate) async fn post_frames(
@@ -154,7 +184,9 @@ fn parse(
         Form::Binary => {
             let b = entry.binding();
             let pools: Vec<usize> = (0..b.n_curvenets()).map(|k| b.n_control_points(k)).collect();
-            let expected = binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), max_frames };
+            let joints = entry.deformer.rig().map(|r| r.skin.influences().n_joints());
+            let expected =
+                binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), joints, max_frames };
             let (frames, is_batch) = binary::parse(bytes, &expected)?;
             if is_batch != batch {
                 return Err(ServiceError::new(
@@ -247,6 +279,40 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         }
         check_points(rest, "rest")?;
     }
+    if let Some(t) = &frame.joint_transforms {
+        let joints = entry.deformer.rig().map(|r| r.skin.influences().n_joints());
+        let Some(joints) = joints else {
+            return Err(ServiceError::new(
+                Code::Unsupported,
+                "joint_transforms: the binding has no skin (post the binding with `skin` to skin frames)",
+            )
+            .detail(|d| d.what = Some("joint_transforms".into())));
+        };
+        if t.len() != joints {
+            return Err(ServiceError::new(
+                Code::CountMismatch,
+                format!("joint_transforms has {} transforms, but the binding's skin has {joints} joints", t.len()),
+            )
+            .detail(count("joint_transforms", joints, t.len())));
+        }
+        if let Some(i) = t.iter().position(|m| !m.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE)) {
+            return Err(ServiceError::new(
+                Code::NonFinite,
+                format!("joint_transforms[{i}] has a value that is not finite or beyond {MAX_COORDINATE:e}"),
+            )
+            .detail(|d| {
+                d.what = Some("joint_transforms".into());
+                d.index = Some(i);
+            }));
+        }
+        if frame.orientations {
+            return Err(ServiceError::new(
+                Code::Unsupported,
+                "orientations with joint_transforms: knot orientations of a skinned frame are not answered yet",
+            )
+            .detail(|d| d.what = Some("orientations".into())));
+        }
+    }
     if let Some(w) = &frame.weights {
         let n_shapes = entry.n_shapes();
         if w.len() != n_shapes {
@@ -292,20 +358,72 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
             BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
             BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
         },
-        adjustments: &[],
-        joint_transforms: None,
+        adjustments: &frame.adjustments,
+        joint_transforms: frame.joint_transforms.as_deref(),
     };
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
     entry
         .deformer
         .frame(&input, &mut points, gradients.as_deref_mut())
-        .map_err(|e| ServiceError::core(e, Phase::Frame))?;
+        .map_err(|e| name_adjustment(ServiceError::core(e, Phase::Frame), &frame.adjustments))?;
     finite_in_f32(&points, "points")?;
     if let Some(g) = &gradients {
         finite_in_f32(g, "gradients")?;
     }
-    Ok(Solved { points, gradients, solve_ms: t0.elapsed().as_secs_f64() * 1e3 })
+    let knot_orientations = if frame.orientations { Some(orientations(entry, frame)?) } else { None };
+    Ok(Solved { points, gradients, solve_ms: t0.elapsed().as_secs_f64() * 1e3, knot_orientations })
+}
+
+/// An error about adjustment `i` also names its curvenet (core's
+/// out-of-range knot names only the adjustment and the control point) and,
+/// when core's message does not, the adjustment's place in the request.
+fn name_adjustment(e: ServiceError, adjustments: &[Adjustment]) -> ServiceError {
+    let Some(i) = e.details.as_ref().and_then(|d| d.adjustment) else { return e };
+    let Some(a) = adjustments.get(i) else { return e };
+    let curvenet = a.curvenet as u32;
+    let e = e.detail(|d| {
+        d.curvenet.get_or_insert(curvenet);
+    });
+    if e.code == Code::IndexOutOfRange && e.message.starts_with("adjustment ") {
+        let message = format!("adjustments[{i}] (curvenet {curvenet}, knot {}): {}", a.knot, e.message);
+        ServiceError { message, ..e }
+    } else {
+        e
+    }
+}
+
+/// Every knot's orientation of every curvenet in `frame` (core's
+/// `Binding::knot_orientations`), in the pose the frame's adjustments act
+/// on: the posed pool, else the pool tracked to the frame's rest pose (with
+/// `before`-mode blend shapes added to it, as `Deformer::frame` does).
+fn orientations(entry: &Entry, frame: &Frame) -> Result<Vec<BTreeMap<String, [f64; 9]>>, ServiceError> {
+    let deformer = &entry.deformer;
+    let sculpted = match (&frame.weights, frame.mode) {
+        (Some(w), BlendShapeMode::Before) if entry.n_shapes() > 0 && w.iter().any(|&x| x != 0.0) => {
+            let mut rest = frame.rest.clone().unwrap_or_else(|| deformer.projection_points().to_vec());
+            deformer.blend_shapes().add_to(w, &mut rest).map_err(|e| ServiceError::core(e, Phase::Frame))?;
+            Some(rest)
+        }
+        _ => None,
+    };
+    let rest = sculpted.as_deref().or(frame.rest.as_deref());
+    let b = deformer.binding();
+    (0..b.n_curvenets())
+        .map(|k| {
+            let posed = frame.posed.get(k).and_then(|p| p.as_deref());
+            let knots = b.knot_orientations(k, posed, rest).map_err(|e| ServiceError::core(e, Phase::Frame))?;
+            Ok(knots
+                .into_iter()
+                .map(|(point, m)| {
+                    (
+                        point.to_string(),
+                        [m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0], m[2][1], m[2][2]],
+                    )
+                })
+                .collect())
+        })
+        .collect()
 }
 
 /// Refuses a result that is not finite once sent as f32 (a pose or weights

@@ -67,11 +67,19 @@ fn config(cases: u32) -> Config {
 }
 
 const POOLS: [usize; 2] = [5, 3];
-const EXPECTED: Expected<'static> = Expected { pools: &POOLS, vertices: 10, blend_shapes: 2, max_frames: 50 };
+const EXPECTED: Expected<'static> =
+    Expected { pools: &POOLS, vertices: 10, blend_shapes: 2, joints: Some(3), max_frames: 50 };
 
 /// An array entry of a binary header, hostile or not.
 fn array() -> impl Strategy<Value = Value> {
-    let name = prop_oneof![Just("posed"), Just("rest"), Just("blend_shape_weights"), Just("points"), Just("")];
+    let name = prop_oneof![
+        Just("posed"),
+        Just("rest"),
+        Just("blend_shape_weights"),
+        Just("joint_transforms"),
+        Just("points"),
+        Just("")
+    ];
     let index = prop_oneof![Just(None), (0u64..4).prop_map(Some), Just(Some(u32::MAX as u64)), Just(Some(1 << 40))];
     let dtype = prop_oneof![Just("f32"), Just("<f4"), Just("f64"), Just("")];
     let dim = prop_oneof![0u64..12, Just(u32::MAX as u64), Just(1 << 32), Just(u64::MAX)];
@@ -111,6 +119,7 @@ fn check_parse(body: &[u8]) -> Result<(), TestCaseError> {
                 }
                 prop_assert!(f.rest.as_ref().is_none_or(|r| r.len() == EXPECTED.vertices));
                 prop_assert!(f.weights.as_ref().is_none_or(|w| w.len() == EXPECTED.blend_shapes));
+                prop_assert!(f.joint_transforms.as_ref().is_none_or(|t| Some(t.len()) == EXPECTED.joints));
             }
         }
         Err(e) => prop_assert!(matches!(

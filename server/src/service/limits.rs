@@ -168,6 +168,7 @@ mod tests {
             projection_points: vec![[0.0; 3]; 3],
             curvenets: vec![c],
             blend_shapes: Vec::new(),
+            skin: None,
             options: Default::default(),
         }
     }

@@ -549,7 +549,23 @@ fn viewer_frame_view(entry: &Entry, frame: &Frame, solved: &Solved) -> Result<Vi
             })
             .collect::<Result<Vec<_>, ServiceError>>()
     };
-    let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
+    // With adjustments, the curvenets drawn are the adjusted pools the solve used.
+    let adjusted: Vec<Vec<[f64; 3]>> = if frame.adjustments.is_empty() {
+        Vec::new()
+    } else {
+        (0..b.n_curvenets())
+            .map(|k| {
+                let posed = frame.posed.get(k).and_then(|p| p.as_deref());
+                b.adjusted_pool(k, posed, frame.rest.as_deref(), &frame.adjustments)
+                    .map_err(|e| ServiceError::core(e, Phase::Frame).context(&format!("curvenet {k}")))
+            })
+            .collect::<Result<_, _>>()?
+    };
+    let posed: Vec<Option<&[[f64; 3]]>> = if adjusted.is_empty() {
+        frame.posed.iter().map(|p| p.as_deref()).collect()
+    } else {
+        adjusted.iter().map(|p| Some(&p[..])).collect()
+    };
     let curvenets = poses(&posed)?;
     let rest = match frame.rest.as_deref() {
         Some(r) => Some(RestView { points: flat(r), cut_points: cut_points(b, r), curvenets: poses(&[])? }),

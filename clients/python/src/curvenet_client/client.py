@@ -421,7 +421,15 @@ def _as_frame(frame: Frame | Mapping[str, Any]) -> Frame:
     if isinstance(frame, Frame):
         return frame
     if isinstance(frame, Mapping):
-        unknown = set(frame) - {"posed", "rest", "blend_shape_weights", "blend_shape_mode", "topology_hash"}
+        unknown = set(frame) - {
+            "posed",
+            "rest",
+            "blend_shape_weights",
+            "blend_shape_mode",
+            "topology_hash",
+            "adjustments",
+            "orientations",
+        }
         if unknown:
             raise ValueError(f"unknown frame fields {sorted(unknown)}")
         return Frame(**frame)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -52,6 +52,13 @@ class Frame:
             vertex's deformation gradient) or ``"before"`` (added to the rest pose).
         topology_hash: the binding's topology as the caller knows it; the
             server refuses the frame (``topology_changed``) when it differs.
+        adjustments: Curvenet Adjustments (server/README.md, "Curvenet
+            Adjustments"): mappings with ``curvenet`` and ``knot`` (a pool
+            index of a spline endpoint) and optionally ``translate``,
+            ``rotate`` (degrees, XYZ), ``scale``, ``attach_tangents`` and
+            ``tangent_translates``, sent as given.
+        orientations: also answer every knot's orientation
+            (:attr:`FrameResult.knot_orientations`).
     """
 
     posed: Sequence[npt.ArrayLike | None] | None = None
@@ -59,16 +66,21 @@ class Frame:
     blend_shape_weights: npt.ArrayLike | None = None
     blend_shape_mode: BlendShapeMode = "after"
     topology_hash: str | None = field(default=None)
+    adjustments: Sequence[Mapping[str, Any]] | None = None
+    orientations: bool = False
 
 
 @dataclass(frozen=True)
 class FrameResult:
     """A deformed frame: ``points`` ``(V, 3)`` float32 and, when asked for,
-    ``gradients`` ``(V, 3, 3)`` float32 (row-major, acting on column vectors)."""
+    ``gradients`` ``(V, 3, 3)`` float32 (row-major, acting on column vectors)
+    and ``knot_orientations``: per curvenet, each knot's pool index to its
+    orientation ``(3, 3)`` float64."""
 
     points: npt.NDArray[np.float32]
     gradients: npt.NDArray[np.float32] | None
     solve_ms: float
+    knot_orientations: list[dict[int, npt.NDArray[np.float64]]] | None = None
 
 
 def _points(value: npt.ArrayLike, what: str) -> npt.NDArray[np.float32]:
@@ -83,6 +95,22 @@ def _weights(value: npt.ArrayLike) -> npt.NDArray[np.float32]:
     if a.ndim != 1:
         raise ValueError(f"blend_shape_weights has shape {a.shape}; expected (k,)")
     return a
+
+
+def _adjustments(frame: Frame) -> list[dict[str, Any]]:
+    return [dict(a) for a in frame.adjustments or ()]
+
+
+def _orientations(value: Any, where: str) -> list[dict[int, npt.NDArray[np.float64]]] | None:
+    """``knot_orientations`` of an answer: per curvenet, pool index -> 3x3."""
+    if value is None:
+        return None
+    if not isinstance(value, list) or not all(isinstance(m, dict) for m in value):
+        raise ProtocolError("protocol", f"{where}: knot_orientations is not a list of objects")
+    try:
+        return [{int(k): np.asarray(v, dtype=np.float64).reshape(3, 3) for k, v in m.items()} for m in value]
+    except (TypeError, ValueError) as e:
+        raise ProtocolError("protocol", f"{where}: knot_orientations: {e}") from None
 
 
 def _frame_arrays(frame: Frame, gradients: bool) -> tuple[dict[str, Any], list[npt.NDArray[np.float32]]]:
@@ -108,6 +136,10 @@ def _frame_arrays(frame: Frame, gradients: bool) -> tuple[dict[str, Any], list[n
         header["blend_shape_mode"] = frame.blend_shape_mode
     if frame.topology_hash is not None:
         header["topology_hash"] = frame.topology_hash
+    if frame.adjustments:
+        header["adjustments"] = _adjustments(frame)
+    if frame.orientations:
+        header["orientations"] = True
     return header, data
 
 
@@ -140,6 +172,10 @@ def frame_json(frame: Frame, *, gradients: bool) -> dict[str, Any]:
         out["blend_shape_mode"] = frame.blend_shape_mode
     if frame.topology_hash is not None:
         out["topology_hash"] = frame.topology_hash
+    if frame.adjustments:
+        out["adjustments"] = _adjustments(frame)
+    if frame.orientations:
+        out["orientations"] = True
     return out
 
 
@@ -201,7 +237,14 @@ def decode_frames(body: bytes, *, batch: bool) -> list[FrameResult]:
         if points is None:
             raise ProtocolError("protocol", f"{where} has no points")
         solve_ms = fh.get("solve_ms", 0.0)
-        out.append(FrameResult(points, gradients, float(solve_ms) if isinstance(solve_ms, (int, float)) else 0.0))
+        out.append(
+            FrameResult(
+                points,
+                gradients,
+                float(solve_ms) if isinstance(solve_ms, (int, float)) else 0.0,
+                _orientations(fh.get("knot_orientations"), where),
+            )
+        )
     if offset != len(body):
         raise ProtocolError("protocol", f"{len(body) - offset} bytes follow the last array of the binary answer")
     return out
@@ -216,7 +259,12 @@ def decode_json_frame(doc: Any, where: str = "the answer") -> FrameResult:
     if doc.get("gradients") is not None:
         gradients = np.asarray(doc["gradients"], dtype=np.float32).reshape(-1, 3, 3)
     solve_ms = doc.get("solve_ms", 0.0)
-    return FrameResult(points, gradients, float(solve_ms) if isinstance(solve_ms, (int, float)) else 0.0)
+    return FrameResult(
+        points,
+        gradients,
+        float(solve_ms) if isinstance(solve_ms, (int, float)) else 0.0,
+        _orientations(doc.get("knot_orientations"), where),
+    )
 
 
 def frame_bytes(frame: Frame) -> int:
