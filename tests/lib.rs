@@ -32,7 +32,7 @@ pub fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * b.abs().max(1.0)
 }
 
-use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, MeshInput, PolyMesh};
+use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, Frame, PolyMesh};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 
@@ -47,25 +47,11 @@ pub struct Bound {
 }
 
 /// The deformer input of a mesh and its curvenets (no blend shapes, default options).
-pub fn deformer_input<'a>(mesh: &'a MeshData, curvenets: &'a [CurvenetInput<'a>]) -> DeformerInput<'a> {
-    DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &mesh.face_vertex_counts,
-            face_vertex_indices: &mesh.face_vertex_indices,
-            projection_points: &mesh.projection_points,
-        },
-        curvenets,
-        blend_shapes: Vec::new(),
-        skinning: None,
-        options: Default::default(),
-    }
-}
+pub use curvenet_schema::deformer_input;
 
 /// The deformer inputs of curvenets read from a stage.
 pub fn curvenet_inputs(nets: &[CurvenetData]) -> Vec<CurvenetInput<'_>> {
-    nets.iter()
-        .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
-        .collect()
+    nets.iter().map(CurvenetData::input).collect()
 }
 
 /// Opens `fixtures/<rel>` and binds its first deformed mesh.

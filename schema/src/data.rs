@@ -92,3 +92,39 @@ pub struct AdjustmentData {
     /// times (empty: a static value).
     pub attributes: Vec<(String, Vec<f64>)>,
 }
+
+/// The one conversion from stage data to core's deformer input: the mesh in
+/// its projection pose and its curvenets, with no blend shapes, no rig and
+/// default options (add those with struct update syntax:
+/// `DeformerInput { blend_shapes, ..deformer_input(&mesh, &curvenets) }`).
+/// `curvenets` are [`CurvenetData::input`]s, in the mesh's order.
+pub fn deformer_input<'a>(
+    mesh: &'a MeshData,
+    curvenets: &'a [curvenet_core::CurvenetInput<'a>],
+) -> curvenet_core::DeformerInput<'a> {
+    curvenet_core::DeformerInput {
+        mesh: mesh.input(),
+        curvenets,
+        blend_shapes: Vec::new(),
+        skinning: None,
+        options: Default::default(),
+    }
+}
+
+impl MeshData {
+    /// The mesh as core takes it: its faces and its projection pose.
+    pub fn input(&self) -> curvenet_core::MeshInput<'_> {
+        curvenet_core::MeshInput {
+            face_vertex_counts: &self.face_vertex_counts,
+            face_vertex_indices: &self.face_vertex_indices,
+            projection_points: &self.projection_points,
+        }
+    }
+}
+
+impl CurvenetData {
+    /// The curvenet as core takes it: splines, neutral pool, sampling density.
+    pub fn input(&self) -> curvenet_core::CurvenetInput<'_> {
+        curvenet_core::CurvenetInput { splines: &self.splines, pool: &self.pool, sample_density: self.sample_density }
+    }
+}

@@ -12,4 +12,4 @@ pub mod data;
 pub mod usd;
 pub mod wire;
 
-pub use data::{AdjustmentData, BlendShapeData, CurvenetData, InbetweenData, MeshData};
+pub use data::{AdjustmentData, BlendShapeData, CurvenetData, InbetweenData, MeshData, deformer_input};

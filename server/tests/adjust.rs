@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::process::Command;
 
-use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
+use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{AdjustmentData, MeshData};
 
@@ -30,22 +30,8 @@ impl Reference {
         let stage = Stage::open(input).unwrap();
         let mesh = stage.deformed_meshes().unwrap().remove(0);
         let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
-        let curvenets: Vec<CurvenetInput> = nets
-            .iter()
-            .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
-            .collect();
-        let deformer = Deformer::new(&DeformerInput {
-            mesh: MeshInput {
-                face_vertex_counts: &mesh.face_vertex_counts,
-                face_vertex_indices: &mesh.face_vertex_indices,
-                projection_points: &mesh.projection_points,
-            },
-            curvenets: &curvenets,
-            blend_shapes: Vec::new(),
-            skinning: None,
-            options: DeformerOptions::default(),
-        })
-        .unwrap();
+        let curvenets: Vec<CurvenetInput> = nets.iter().map(curvenet_schema::CurvenetData::input).collect();
+        let deformer = Deformer::new(&DeformerInput { ..curvenet_schema::deformer_input(&mesh, &curvenets) }).unwrap();
         let adjustments = nets.iter().map(|n| stage.curvenet_adjustments(n).unwrap()).collect();
         Self { stage, mesh, adjustments, deformer }
     }

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use curvenet_core::blend_shapes::BlendShape;
-use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 
@@ -61,22 +61,10 @@ impl Reference {
                 BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), ib).unwrap()
             })
             .collect();
-        let curvenets: Vec<CurvenetInput> = nets
-            .iter()
-            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-            .collect();
-        let deformer = Deformer::new(&DeformerInput {
-            mesh: MeshInput {
-                face_vertex_counts: &mesh.face_vertex_counts,
-                face_vertex_indices: &mesh.face_vertex_indices,
-                projection_points: &mesh.projection_points,
-            },
-            curvenets: &curvenets,
-            blend_shapes,
-            skinning: None,
-            options: DeformerOptions::default(),
-        })
-        .unwrap();
+        let curvenets: Vec<CurvenetInput> = nets.iter().map(curvenet_schema::CurvenetData::input).collect();
+        let deformer =
+            Deformer::new(&DeformerInput { blend_shapes, ..curvenet_schema::deformer_input(&mesh, &curvenets) })
+                .unwrap();
         Self { stage, mesh, nets, deformer }
     }
 

@@ -6,7 +6,7 @@
 use curvenet_core::skinning::{
     self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, SplineSkinning, SurfaceWeights,
 };
-use curvenet_core::{ClosestPointBvh, CurvenetInput, Deformer, DeformerInput, Frame, MeshInput, PolyMesh};
+use curvenet_core::{ClosestPointBvh, CurvenetInput, Deformer, DeformerInput, Frame, PolyMesh};
 use curvenet_schema::usd::{CurvenetSkinning, Stage, read_points_overrides};
 use openusd::sdf::Value;
 
@@ -56,22 +56,8 @@ impl Reference {
         let n = mesh.projection_points.len();
         let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).unwrap();
         let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
-        let inputs: Vec<CurvenetInput> = nets
-            .iter()
-            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-            .collect();
-        let deformer = Deformer::new(&DeformerInput {
-            mesh: MeshInput {
-                face_vertex_counts: &mesh.face_vertex_counts,
-                face_vertex_indices: &mesh.face_vertex_indices,
-                projection_points: &mesh.projection_points,
-            },
-            curvenets: &inputs,
-            blend_shapes: Vec::new(),
-            skinning: None,
-            options: Default::default(),
-        })
-        .unwrap();
+        let inputs: Vec<CurvenetInput> = nets.iter().map(curvenet_schema::CurvenetData::input).collect();
+        let deformer = Deformer::new(&DeformerInput { ..curvenet_schema::deformer_input(&mesh, &inputs) }).unwrap();
         let rig = stage.skin_rig(&mesh).unwrap().unwrap();
         let skeleton = Skeleton::new(&rig.parents, &rig.bind_transforms).unwrap();
         let bvh = ClosestPointBvh::new(&topology, &mesh.projection_points).unwrap();

@@ -74,9 +74,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
-use curvenet_core::{
-    Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Frame, Mat3, MeshInput,
-};
+use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, Mat3};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
@@ -342,21 +340,8 @@ fn load(file: &Path) -> CliResult<(MeshData, Vec<CurvenetData>, f64)> {
 
 /// One `Deformer::new` of `mesh` and `nets`, timed (wall and thread CPU).
 fn build(mesh: &MeshData, nets: &[CurvenetData], context: &str) -> CliResult<(Deformer, Lap)> {
-    let curvenets: Vec<CurvenetInput> = nets
-        .iter()
-        .map(|n| CurvenetInput { splines: &n.splines, pool: &n.pool, sample_density: n.sample_density })
-        .collect();
-    let input = DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &mesh.face_vertex_counts,
-            face_vertex_indices: &mesh.face_vertex_indices,
-            projection_points: &mesh.projection_points,
-        },
-        curvenets: &curvenets,
-        blend_shapes: Vec::new(),
-        skinning: None,
-        options: DeformerOptions::default(),
-    };
+    let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
+    let input = DeformerInput { ..curvenet_schema::deformer_input(&mesh, &curvenets) };
     let clock = Stopwatch::start();
     let deformer = Deformer::new(&input).map_err(core_err(context))?;
     Ok((deformer, clock.stop()))

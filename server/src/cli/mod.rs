@@ -59,7 +59,8 @@ pub fn deformer(
     skinning: Option<curvenet_core::deformer::Rig>,
 ) -> CliResult<curvenet_core::Deformer> {
     use curvenet_core::blend_shapes::BlendShape;
-    use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput};
+    use curvenet_core::{CurvenetInput, Deformer, DeformerInput};
+    use curvenet_schema::CurvenetData;
     let n = mesh.projection_points.len();
     let blend_shapes = mesh
         .blend_shapes
@@ -70,21 +71,8 @@ pub fn deformer(
                 .map_err(|source| CliError::Core { context: s.prim.clone(), source })
         })
         .collect::<CliResult<Vec<_>>>()?;
-    let curvenets: Vec<CurvenetInput<'_>> = nets
-        .iter()
-        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-        .collect();
-    let input = DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &mesh.face_vertex_counts,
-            face_vertex_indices: &mesh.face_vertex_indices,
-            projection_points: &mesh.projection_points,
-        },
-        curvenets: &curvenets,
-        blend_shapes,
-        skinning,
-        options: DeformerOptions::default(),
-    };
+    let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
+    let input = DeformerInput { blend_shapes, skinning, ..curvenet_schema::deformer_input(&mesh, &curvenets) };
     Deformer::new(&input).map_err(|e| match e {
         curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
             context: format!("{} (bound to {})", nets[curvenet as usize].path, mesh.path),
