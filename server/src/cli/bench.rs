@@ -74,7 +74,7 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
-use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, Mat3};
+use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, Frame, Mat3};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
@@ -341,7 +341,7 @@ fn load(file: &Path) -> CliResult<(MeshData, Vec<CurvenetData>, f64)> {
 /// One `Deformer::new` of `mesh` and `nets`, timed (wall and thread CPU).
 fn build(mesh: &MeshData, nets: &[CurvenetData], context: &str) -> CliResult<(Deformer, Lap)> {
     let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let input = DeformerInput { ..curvenet_schema::deformer_input(&mesh, &curvenets) };
+    let input = curvenet_schema::deformer_input(mesh, &curvenets);
     let clock = Stopwatch::start();
     let deformer = Deformer::new(&input).map_err(core_err(context))?;
     Ok((deformer, clock.stop()))

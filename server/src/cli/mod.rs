@@ -72,7 +72,7 @@ pub fn deformer(
         })
         .collect::<CliResult<Vec<_>>>()?;
     let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let input = DeformerInput { blend_shapes, skinning, ..curvenet_schema::deformer_input(&mesh, &curvenets) };
+    let input = DeformerInput { blend_shapes, skinning, ..curvenet_schema::deformer_input(mesh, &curvenets) };
     Deformer::new(&input).map_err(|e| match e {
         curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
             context: format!("{} (bound to {})", nets[curvenet as usize].path, mesh.path),
