@@ -289,6 +289,24 @@ pub struct BindingTimings {
     pub total_ms: f64,
 }
 
+impl BindingRequest {
+    /// The request's mesh as core takes it (faces and projection pose).
+    pub fn mesh_input(&self) -> curvenet_core::MeshInput<'_> {
+        curvenet_core::MeshInput {
+            face_vertex_counts: &self.face_vertex_counts,
+            face_vertex_indices: &self.face_vertex_indices,
+            projection_points: &self.projection_points,
+        }
+    }
+}
+
+impl CurvenetSpec {
+    /// The curvenet as core takes it: splines, neutral pool, sampling density.
+    pub fn input(&self) -> curvenet_core::CurvenetInput<'_> {
+        curvenet_core::CurvenetInput { splines: &self.splines, pool: &self.pool, sample_density: self.sample_density }
+    }
+}
+
 impl From<&curvenet_core::binding::BindStats> for BindingStats {
     /// The one conversion from core's counts to their wire names (the
     /// service's binding response and `curvenet inspect --bind` both use it).

@@ -16,7 +16,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse};
 use curvenet_server::{AppState, Config};
@@ -120,17 +120,9 @@ fn main() {
 
     // The in-process reference: bind, then solve every pose (single thread).
     let t = Instant::now();
-    let curvenets: Vec<CurvenetInput> = req
-        .curvenets
-        .iter()
-        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-        .collect();
+    let curvenets: Vec<CurvenetInput> = req.curvenets.iter().map(curvenet_schema::wire::CurvenetSpec::input).collect();
     let deformer = Deformer::new(&DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &req.face_vertex_counts,
-            face_vertex_indices: &req.face_vertex_indices,
-            projection_points: &req.projection_points,
-        },
+        mesh: req.mesh_input(),
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
         skinning: None,

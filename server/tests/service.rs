@@ -7,7 +7,7 @@ use std::time::Duration;
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
-use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput};
+use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
 use curvenet_server::{AppState, BakeJob, Baker, Code, Config, app};
@@ -33,17 +33,9 @@ pub fn request_from_stage(path: &std::path::Path) -> BindingRequest {
 
 /// The same binding computed in-process.
 fn reference(req: &BindingRequest) -> Deformer {
-    let curvenets: Vec<CurvenetInput> = req
-        .curvenets
-        .iter()
-        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-        .collect();
+    let curvenets: Vec<CurvenetInput> = req.curvenets.iter().map(curvenet_schema::wire::CurvenetSpec::input).collect();
     Deformer::new(&DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &req.face_vertex_counts,
-            face_vertex_indices: &req.face_vertex_indices,
-            projection_points: &req.projection_points,
-        },
+        mesh: req.mesh_input(),
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
         skinning: None,

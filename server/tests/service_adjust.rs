@@ -10,7 +10,7 @@ use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{Request, StatusCode, header};
 use curvenet_core::adjust::knot_tangents;
-use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, MeshInput, Rotate};
+use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, Rotate};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameResponse};
 use curvenet_server::{AppState, Config, app};
@@ -33,17 +33,10 @@ fn reference() -> &'static Deformer {
     static D: OnceLock<Deformer> = OnceLock::new();
     D.get_or_init(|| {
         let req = hand();
-        let curvenets: Vec<CurvenetInput> = req
-            .curvenets
-            .iter()
-            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-            .collect();
+        let curvenets: Vec<CurvenetInput> =
+            req.curvenets.iter().map(curvenet_schema::wire::CurvenetSpec::input).collect();
         Deformer::new(&DeformerInput {
-            mesh: MeshInput {
-                face_vertex_counts: &req.face_vertex_counts,
-                face_vertex_indices: &req.face_vertex_indices,
-                projection_points: &req.projection_points,
-            },
+            mesh: req.mesh_input(),
             curvenets: &curvenets,
             blend_shapes: Vec::new(),
             skinning: None,

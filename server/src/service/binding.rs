@@ -11,9 +11,7 @@ use curvenet_core::skinning::{
     ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skin, SkinningMethod, SplineSkinning,
     SplineSkinningOptions, SurfaceWeights,
 };
-use curvenet_core::{
-    BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, MeshInput, PolyMesh,
-};
+use curvenet_core::{BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, PolyMesh};
 use curvenet_core::{ClosestPointBvh, skinning};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, BindingStats, BindingTimings, CurvenetSkinSpec, SkinMethod, SkinSpec, Warning,
@@ -245,17 +243,10 @@ pub fn build(
         Some(skin) => Some(build_rig(req, skin)?),
         None => None,
     };
-    let curvenets: Vec<CurvenetInput<'_>> = req
-        .curvenets
-        .iter()
-        .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-        .collect();
+    let curvenets: Vec<CurvenetInput<'_>> =
+        req.curvenets.iter().map(curvenet_schema::wire::CurvenetSpec::input).collect();
     let input = DeformerInput {
-        mesh: MeshInput {
-            face_vertex_counts: &req.face_vertex_counts,
-            face_vertex_indices: &req.face_vertex_indices,
-            projection_points: &req.projection_points,
-        },
+        mesh: req.mesh_input(),
         curvenets: &curvenets,
         blend_shapes,
         skinning: rig,

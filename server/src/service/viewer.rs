@@ -784,11 +784,7 @@ fn refusal(index: usize, stage: &ViewerStage) -> Option<ViewerRefusal> {
     if error.is_none() {
         // Everything before the binding went through: the binding itself,
         // through the one constructor, names the rest.
-        let nets: Vec<CurvenetInput> = req
-            .curvenets
-            .iter()
-            .map(|c| CurvenetInput { splines: &c.splines, pool: &c.pool, sample_density: c.sample_density })
-            .collect();
+        let nets: Vec<CurvenetInput> = req.curvenets.iter().map(curvenet_schema::wire::CurvenetSpec::input).collect();
         let o = &req.options;
         let mut bind = BindOptions::default().with_strict(o.strict);
         bind.cut.snap_tolerance = o.snap_tolerance.unwrap_or(bind.cut.snap_tolerance);
