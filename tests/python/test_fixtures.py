@@ -114,7 +114,8 @@ def expected_offsets(full, inbetweens, weight):
 
 def test_manifest_lists_every_composed_stage():
     assert MANIFEST["format"] == 1
-    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, RIGGED, ADJUSTED]
+    assert STAGES == sorted(["grid/grid.usda", "cylinder/cylinder.usda", SHOT, SKINNED, RIGGED, ADJUSTED,
+                             "shots/hand_caged/shot.usda", "shots/hand_cage_only/shot.usda"]
                             + HAND_STAGES + CORPUS_STAGES)
     for rel in STAGES:
         assert (FIXTURES / rel).is_file(), rel
@@ -816,6 +817,201 @@ def test_rigged_reference_is_usd_cores_skinning_after_the_blend_shape(frame):
         np.testing.assert_allclose(lbs.astype(np.float64), neutral_hand().astype(np.float64), rtol=0, atol=1e-6)
     else:
         assert diff > 1e-4, "dual quaternions should differ from linear blending"
+
+
+# ----------------------------------------------------------------------------
+# the caged shots: a coarse cage around the hand, with and without the skeleton
+
+CAGED = "shots/hand_caged/shot.usda"
+CAGE_ONLY = "shots/hand_cage_only/shot.usda"
+CAGE_STAGES = [rel for rel in STAGES if MANIFEST["stages"][rel].get("cages")]
+CAGE_CLEARANCE = 0.01  # fixtures/README.md: every hand vertex is at least this far inside the cage
+
+
+def cage_of(rel):
+    """(mesh prim, cage prim, points default, triangles) of the one cage of a stage."""
+    s = stage(rel)
+    (path, want), = MANIFEST["stages"][rel]["cages"].items()
+    mesh = s.GetPrimAtPath(want["mesh"])
+    targets = [str(p) for p in mesh.GetRelationship("curvenet:cage").GetTargets()]
+    assert targets == [path], f"{rel}: {want['mesh']}.curvenet:cage targets {targets}"
+    cage = s.GetPrimAtPath(path)
+    assert cage.IsA(UsdGeom.Mesh), f"{path} is not a Mesh"
+    geom = UsdGeom.Mesh(cage)
+    counts = np.array(geom.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
+    assert np.all(counts == 3), f"{path}: faces {np.nonzero(counts != 3)[0][:5]} are not triangles"
+    tris = np.array(geom.GetFaceVertexIndicesAttr().Get(), dtype=np.int64).reshape(-1, 3)
+    return mesh, cage, vec3(geom.GetPointsAttr().Get(Usd.TimeCode.Default())).astype(np.float64), tris
+
+
+def solid_angle_winding(points, tris, q):
+    """Generalised winding number of each query point q w.r.t. a triangle mesh (Van Oosterom-Strackee)."""
+    w = np.zeros(len(q))
+    for t in tris:
+        a, b, c = (points[i] - q for i in t)
+        la, lb, lc = (np.linalg.norm(x, axis=1) for x in (a, b, c))
+        det = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la
+               + np.einsum("ij,ij->i", c, a) * lb)
+        w += 2.0 * np.arctan2(det, den)
+    return w / (4.0 * math.pi)
+
+
+def distance_to_triangles(points, tris, q):
+    """Distance from each q to the nearest triangle: the plane when the projection falls
+    inside, else the nearest edge segment."""
+    best = np.full(len(q), np.inf)
+    for t in tris:
+        a, b, c = (points[i] for i in t)
+        n = np.cross(b - a, c - a)
+        n /= np.linalg.norm(n)
+        h = (q - a) @ n
+        proj = q - h[:, None] * n
+        inside = np.ones(len(q), dtype=bool)
+        for u, v in ((a, b), (b, c), (c, a)):
+            inside &= np.cross(v - u, proj - u) @ n >= 0.0
+        d = np.where(inside, np.abs(h), np.inf)
+        for u, v in ((a, b), (b, c), (c, a)):
+            s = np.clip((q - u) @ (v - u) / ((v - u) @ (v - u)), 0.0, 1.0)
+            d = np.minimum(d, np.linalg.norm(q - (u + s[:, None] * (v - u)), axis=1))
+        best = np.minimum(best, d)
+    return best
+
+
+def test_cage_stages_are_the_caged_shots():
+    assert CAGE_STAGES == sorted([CAGED, CAGE_ONLY])
+
+
+@pytest.mark.parametrize("rel", CAGE_STAGES)
+def test_cages_match_the_manifest(rel):
+    s = stage(rel)
+    (path, want), = MANIFEST["stages"][rel]["cages"].items()
+    mesh, cage, points, tris = cage_of(rel)
+    assert len(points) == want["n_points"] and len(tris) == want["n_triangles"]
+    assert 100 <= len(points) <= 300
+    assert int_checksum(tris.ravel()) == want["indices_checksum"]
+    assert tris.min() >= 0 and tris.max() < len(points)
+    geom = UsdGeom.Mesh(cage)
+    assert geom.GetFaceVertexIndicesAttr().GetNumTimeSamples() == 0, "the cage's topology is static"
+    assert geom.GetPurposeAttr().Get() == UsdGeom.Tokens.guide
+    assert_close(checksum(points), want["rest_default_checksum"], f"{rel} {path} rest default")
+    attr = geom.GetPointsAttr()
+    assert [float(t) for t, _ in want["rest_samples"]] == list(attr.GetTimeSamples())
+    for t, c in want["rest_samples"]:
+        p = vec3(attr.Get(t))
+        assert len(p) == len(points), f"{path} has {len(p)} points at {t}"
+        assert_close(checksum(p), c, f"{rel} {path} rest at {t}")
+    pv = UsdGeom.PrimvarsAPI(cage).GetPrimvar("curvenet:posedCageOffsets")
+    if want["posed_offset_samples"]:
+        assert pv.GetTypeName() == Sdf.ValueTypeNames.Point3fArray
+        assert pv.GetInterpolation() == UsdGeom.Tokens.vertex
+        assert [float(t) for t, _ in want["posed_offset_samples"]] == list(pv.GetAttr().GetTimeSamples())
+        for t, c in want["posed_offset_samples"]:
+            o = vec3(pv.Get(t))
+            assert len(o) == len(points), f"{path} has {len(o)} offsets at {t}"
+            assert_close(checksum(o), c, f"{rel} {path} posed offsets at {t}")
+    else:
+        assert not pv
+    method = mesh.GetAttribute("curvenet:skinningMethod")
+    if want["skinning_method"] is None:
+        assert not method.HasAuthoredValue()
+    else:
+        assert method.GetVariability() == Sdf.VariabilityUniform
+        assert method.GetTypeName() == Sdf.ValueTypeNames.Token
+        assert method.Get() == want["skinning_method"]
+    skel = UsdSkel.BindingAPI(mesh).GetSkeletonRel().GetTargets() if mesh.HasAPI(UsdSkel.BindingAPI) else []
+    if want["n_joints"]:
+        (skel_path,) = skel
+        assert len(UsdSkel.Skeleton(s.GetPrimAtPath(skel_path)).GetJointsAttr().Get()) == want["n_joints"]
+    else:
+        assert not skel and not mesh.HasAttribute("primvars:skel:jointIndices")
+        assert not any(p.IsA(UsdSkel.Skeleton) or p.IsA(UsdSkel.Root) for p in s.Traverse())
+
+
+@pytest.mark.parametrize("rel", CAGE_STAGES)
+def test_cage_is_closed_manifold_and_outward(rel):
+    _, cage, points, tris = cage_of(rel)
+    directed = {}
+    for f, t in enumerate(tris.tolist()):
+        assert len(set(t)) == 3, f"triangle {f} repeats a vertex"
+        for e in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0])):
+            assert e not in directed, f"edge {e} is used twice in one direction"
+            directed[e] = f
+    assert all((v, u) in directed for u, v in directed), "a boundary edge: the cage is not closed"
+    for v in range(len(points)):  # one fan of triangles around every vertex
+        ring = {t[(t.index(v) + 1) % 3]: t[(t.index(v) + 2) % 3] for t in tris.tolist() if v in t}
+        start, at, n = next(iter(ring)), None, 0
+        at = start
+        while True:
+            at, n = ring[at], n + 1
+            if at == start:
+                break
+        assert n == len(ring), f"vertex {v} is not manifold"
+    assert len(points) - len(directed) // 2 + len(tris) == 2, "not a sphere"
+    # outward: positive signed volume at the default and at every rest-cage edit
+    attr = UsdGeom.Mesh(cage).GetPointsAttr()
+    for t in [Usd.TimeCode.Default()] + list(attr.GetTimeSamples()):
+        p = vec3(attr.Get(t)).astype(np.float64)
+        a, b, c = p[tris[:, 0]], p[tris[:, 1]], p[tris[:, 2]]
+        assert np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0 > 0.0, f"inside out at {t}"
+
+
+@pytest.mark.parametrize("rel", CAGE_STAGES)
+def test_cage_encloses_the_mesh_with_a_margin(rel):
+    mesh, _, points, tris = cage_of(rel)
+    hand = vec3(UsdGeom.Mesh(mesh).GetPointsAttr().Get(Usd.TimeCode.Default())).astype(np.float64)
+    w = solid_angle_winding(points, tris, hand)
+    assert np.abs(w - 1.0).max() < 1e-6, f"vertex {int(np.argmax(np.abs(w - 1.0)))} is not inside the cage"
+    d = distance_to_triangles(points, tris, hand)
+    assert d.min() >= CAGE_CLEARANCE, f"vertex {int(np.argmin(d))} is {d.min():.4f} from the cage"
+    # a point outside is seen as outside (the winding test can fail)
+    assert abs(solid_angle_winding(points, tris, np.array([[5.0, 0.5, 0.0]]))[0]) < 1e-9
+
+
+def test_caged_shot_edits_rest_cage_pose_and_posed_cage_on_their_own_frames():
+    s = stage(CAGED)
+    assert list(s.GetRootLayer().subLayerPaths) == ["./cage.usda", "../../hand/hand_1k4.usda"]
+    _, cage, rest0, _ = cage_of(CAGED)
+    points = UsdGeom.Mesh(cage).GetPointsAttr()
+    offsets = UsdGeom.PrimvarsAPI(cage).GetPrimvar("curvenet:posedCageOffsets")
+    anim = UsdSkel.Animation(s.GetPrimAtPath("/Hand/Skel/Anim"))
+    rest_pose = list(anim.GetRotationsAttr().Get(1))
+    assert all(q == Gf.Quatf(1.0) for q in rest_pose)
+    edited, posed, pushed = set(), set(), set()
+    for t in range(1, 11):
+        if np.abs(vec3(points.Get(t)) - rest0).max() > 1e-6:
+            edited.add(t)
+        if list(anim.GetRotationsAttr().Get(t)) != rest_pose:
+            posed.add(t)
+        if np.abs(vec3(offsets.Get(t))).max() > 1e-6:
+            pushed.add(t)
+    assert edited == {2, 3, 8, 10}
+    assert posed == {4, 5, 8, 9, 10}
+    assert pushed == {6, 7, 9, 10}
+    # the full edits are those of frames 3, 5 and 7
+    np.testing.assert_array_equal(vec3(points.Get(8)), vec3(points.Get(3)))
+    np.testing.assert_array_equal(vec3(offsets.Get(10)), vec3(offsets.Get(7)))
+    assert list(anim.GetRotationsAttr().Get(10)) == list(anim.GetRotationsAttr().Get(5))
+
+
+def test_caged_shot_skeleton_and_weights_are_the_rigged_shots():
+    caged, rigged = stage(CAGED), stage(RIGGED)
+    for attr in ("joints", "bindTransforms", "restTransforms"):
+        assert (caged.GetPrimAtPath("/Hand/Skel").GetAttribute(attr).Get()
+                == rigged.GetPrimAtPath("/Hand/Skel").GetAttribute(attr).Get()), attr
+    for attr in ("primvars:skel:jointIndices", "primvars:skel:jointWeights"):
+        assert (caged.GetPrimAtPath("/Hand/Mesh").GetAttribute(attr).Get()
+                == rigged.GetPrimAtPath("/Hand/Mesh").GetAttribute(attr).Get()), attr
+    # its full pose is hand_rigged's last frame
+    assert (list(caged.GetPrimAtPath("/Hand/Skel/Anim").GetAttribute("rotations").Get(5))
+            == list(rigged.GetPrimAtPath("/Hand/Skel/Anim").GetAttribute("rotations").Get(12)))
+    assert UsdSkel.BindingAPI(caged.GetPrimAtPath("/Hand/Mesh")).GetSkinningMethodAttr().Get() == "classicLinear"
+    cache = UsdSkel.Cache()
+    cache.Populate(UsdSkel.Root(caged.GetPrimAtPath("/Hand")), Usd.PrimDefaultPredicate)
+    assert cache.GetSkinningQuery(caged.GetPrimAtPath("/Hand/Mesh")).HasJointInfluences()
+    # UsdSkel binds the skeleton to the mesh only, never to the cage
+    (binding,) = cache.ComputeSkelBindings(UsdSkel.Root(caged.GetPrimAtPath("/Hand")), Usd.PrimDefaultPredicate)
+    assert [str(t.GetPrim().GetPath()) for t in binding.GetSkinningTargets()] == ["/Hand/Mesh"]
 
 
 # ----------------------------------------------------------------------------
