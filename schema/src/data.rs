@@ -128,3 +128,121 @@ impl CurvenetData {
         curvenet_core::CurvenetInput { splines: &self.splines, pool: &self.pool, sample_density: self.sample_density }
     }
 }
+
+/// A mesh's cage (schema/README.md, "Cage"): a closed, outward-oriented
+/// triangle `Mesh` reached through the mesh's `rel curvenet:cage`, read by
+/// `Stage::cage`. Its time samples are held here (a cage is small), so a
+/// frame is evaluated without the stage, in any thread:
+/// [`CageData::frame`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CageData {
+    /// The deformed mesh whose `curvenet:cage` targets this cage.
+    pub mesh: String,
+    /// Composed path of the cage prim.
+    pub path: String,
+    /// The rest cage at bind: the default value of the cage's `points`.
+    pub rest_points: Vec<[f64; 3]>,
+    /// The cage's triangles, counter-clockwise seen from outside (a
+    /// `leftHanded` cage has been reversed).
+    pub triangles: Vec<[u32; 3]>,
+    /// Rest-cage edits: the `points` time samples (the rest cage C of a
+    /// frame), sorted by time; empty when the rest cage is never edited.
+    pub rest_samples: Vec<CageSample>,
+    /// The default value of `primvars:curvenet:posedCageOffsets`, if authored.
+    pub posed_offsets_default: Option<Vec<[f64; 3]>>,
+    /// Posed-cage edits ∂C′: the `primvars:curvenet:posedCageOffsets` time
+    /// samples, sorted by time.
+    pub posed_offset_samples: Vec<CageSample>,
+}
+
+/// One time sample of a per-cage-vertex array.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CageSample {
+    /// The time code.
+    pub time: f64,
+    /// One value per cage vertex.
+    pub points: Vec<[f64; 3]>,
+}
+
+/// A cage evaluated at one time ([`CageData::frame`]): borrowed from the
+/// samples when the time is on (or outside) them, interpolated otherwise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CageFrame<'a> {
+    /// The rest cage C of the frame; `None` when the rest cage has no time
+    /// samples (it is [`CageData::rest_points`], the bind cage).
+    pub rest_cage: Option<std::borrow::Cow<'a, [[f64; 3]]>>,
+    /// The posed-cage edits ∂C′ of the frame; `None` when none are authored.
+    pub posed_cage_offsets: Option<std::borrow::Cow<'a, [[f64; 3]]>>,
+}
+
+impl CageFrame<'_> {
+    /// The rest cage of the frame, for core's `Frame::rest_cage`.
+    pub fn rest_cage(&self) -> Option<&[[f64; 3]]> {
+        self.rest_cage.as_deref()
+    }
+
+    /// The posed-cage edits of the frame, for core's `Frame::posed_cage_offsets`.
+    pub fn posed_cage_offsets(&self) -> Option<&[[f64; 3]]> {
+        self.posed_cage_offsets.as_deref()
+    }
+}
+
+impl CageData {
+    /// The cage evaluated at `time` (`None`: the default values), as USD
+    /// evaluates time samples (linear interpolation between the bracketing
+    /// samples, the first or last sample held outside them, a sample's own
+    /// value on it; the default value only when there are no samples).
+    /// Interpolation is in `f64` from the widened samples.
+    pub fn frame(&self, time: Option<f64>) -> CageFrame<'_> {
+        let rest_cage = match time {
+            Some(t) if !self.rest_samples.is_empty() => Some(evaluate(&self.rest_samples, t)),
+            _ => None,
+        };
+        let posed_cage_offsets = match time {
+            Some(t) if !self.posed_offset_samples.is_empty() => Some(evaluate(&self.posed_offset_samples, t)),
+            _ => self.posed_offsets_default.as_deref().map(std::borrow::Cow::Borrowed),
+        };
+        CageFrame { rest_cage, posed_cage_offsets }
+    }
+
+    /// The rest cage at `time`: the frame's rest-cage edit, else the bind cage.
+    pub fn rest_cage_at(&self, time: Option<f64>) -> std::borrow::Cow<'_, [[f64; 3]]> {
+        self.frame(time).rest_cage.unwrap_or(std::borrow::Cow::Borrowed(&self.rest_points))
+    }
+
+    /// Every time code at which the cage has a sample (rest or posed edits),
+    /// sorted, without repeats: the frames a bake takes by default.
+    pub fn sample_times(&self) -> Vec<f64> {
+        let mut t: Vec<f64> = self.rest_samples.iter().chain(&self.posed_offset_samples).map(|s| s.time).collect();
+        t.sort_by(f64::total_cmp);
+        t.dedup();
+        t
+    }
+}
+
+/// USD's evaluation of sorted, non-empty samples at `time`.
+fn evaluate(samples: &[CageSample], time: f64) -> std::borrow::Cow<'_, [[f64; 3]]> {
+    use std::borrow::Cow;
+    let first = &samples[0];
+    let last = &samples[samples.len() - 1];
+    // A NaN time is ordered as USD orders it: past every number on its sign's side.
+    if time <= first.time || (time.is_nan() && time.is_sign_negative()) {
+        return Cow::Borrowed(&first.points);
+    }
+    if time >= last.time || time.is_nan() {
+        return Cow::Borrowed(&last.points);
+    }
+    let hi = samples.partition_point(|s| s.time <= time);
+    let (a, b) = (&samples[hi - 1], &samples[hi]);
+    if a.time == time {
+        return Cow::Borrowed(&a.points);
+    }
+    let u = (time - a.time) / (b.time - a.time);
+    Cow::Owned(
+        a.points
+            .iter()
+            .zip(&b.points)
+            .map(|(p, q)| [p[0] + (q[0] - p[0]) * u, p[1] + (q[1] - p[1]) * u, p[2] + (q[2] - p[2]) * u])
+            .collect(),
+    )
+}

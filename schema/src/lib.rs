@@ -12,4 +12,7 @@ pub mod data;
 pub mod usd;
 pub mod wire;
 
-pub use data::{AdjustmentData, BlendShapeData, CurvenetData, InbetweenData, MeshData, deformer_input};
+pub use data::{
+    AdjustmentData, BlendShapeData, CageData, CageFrame, CageSample, CurvenetData, InbetweenData, MeshData,
+    deformer_input,
+};

@@ -15,6 +15,7 @@
 //! ```
 
 mod adjust;
+mod cage;
 mod confine;
 mod curvenet_layer;
 mod error;
@@ -28,10 +29,11 @@ pub use write::{
 };
 
 pub use adjust::ADJUSTMENT_TYPE;
+pub use cage::{CAGE_REL, POSED_CAGE_OFFSETS};
 pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;
 pub use read::Stage;
 pub use skel::{
     BLEND_SHAPE_ORDER, BlendShapeOrder, CURVENET_JOINT_INDICES, CURVENET_JOINT_WEIGHTS, CURVENET_SKINNING,
-    CurvenetSkinning, SkinRig,
+    CURVENET_SKINNING_METHOD, CurvenetSkinning, CurvenetSkinningMethod, SkinRig,
 };

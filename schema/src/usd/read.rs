@@ -198,7 +198,7 @@ impl Stage {
         })
     }
 
-    fn index_array(&self, prim: &usd::Prim, name: &str, v: &Value, len: usize) -> Result<Vec<u32>> {
+    pub(super) fn index_array(&self, prim: &usd::Prim, name: &str, v: &Value, len: usize) -> Result<Vec<u32>> {
         let ints = value::ints(v).ok_or_else(|| {
             UsdError::contract(prim.path(), name, format!("has type {}, expected int[]", value::kind(v)))
         })?;

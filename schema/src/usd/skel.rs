@@ -31,6 +31,38 @@ pub const CURVENET_JOINT_WEIGHTS: &str = "primvars:curvenet:skel:jointWeights";
 pub const CURVENET_SKINNING: &str = "curvenet:skinning";
 /// `uniform token curvenet:blendShapeOrder` on a mesh: `beforeSkinning` or `afterSolve`.
 pub const BLEND_SHAPE_ORDER: &str = "curvenet:blendShapeOrder";
+/// `uniform token curvenet:skinningMethod` on a skinned mesh: our tools'
+/// skinning method, overriding UsdSkel's `primvars:skel:skinningMethod`
+/// (whose allowed tokens cannot grow to `centersOfRotation`).
+pub const CURVENET_SKINNING_METHOD: &str = "curvenet:skinningMethod";
+
+/// A mesh's `curvenet:skinningMethod` (schema/README.md, "Cage"): the
+/// skinning method our tools use instead of UsdSkel's token.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CurvenetSkinningMethod {
+    /// `classicLinear`: linear blend skinning, as UsdSkel's token of that name.
+    ClassicLinear,
+    /// `dualQuaternion`: dual quaternions, as UsdSkel's token of that name.
+    DualQuaternion,
+    /// `centersOfRotation`: optimised centres of rotation (Le and Hodgins 2016).
+    CentersOfRotation,
+}
+
+impl CurvenetSkinningMethod {
+    /// The token as authored.
+    pub fn token(self) -> &'static str {
+        match self {
+            Self::ClassicLinear => "classicLinear",
+            Self::DualQuaternion => "dualQuaternion",
+            Self::CentersOfRotation => "centersOfRotation",
+        }
+    }
+
+    /// The method a token names, if any.
+    pub fn from_token(token: &str) -> Option<Self> {
+        [Self::ClassicLinear, Self::DualQuaternion, Self::CentersOfRotation].into_iter().find(|m| m.token() == token)
+    }
+}
 
 /// The UsdSkel rig of a mesh: everything `curvenet_core::skinning` needs
 /// but the per-frame joint transforms.
@@ -65,6 +97,9 @@ pub struct SkinRig {
     /// `primvars:skel:skinningMethod` (or the older `skel:skinningMethod`;
     /// `classicLinear` when unauthored).
     pub method: SkinningMethod,
+    /// `curvenet:skinningMethod`, when authored: the method our tools use
+    /// instead of [`Self::method`] (which stays UsdSkel's, for comparison).
+    pub curvenet_method: Option<CurvenetSkinningMethod>,
     /// Whether the influences were authored `constant` (rigid) and expanded.
     pub constant_influences: bool,
     /// Time codes at which the animation's joint transforms have samples.
@@ -108,7 +143,15 @@ impl Stage {
     /// an unknown skinning method, a non-affine `geomBindTransform`.
     pub fn skin_rig(&self, mesh: &MeshData) -> Result<Option<SkinRig>> {
         let prim = self.prim(&mesh.path)?;
+        let curvenet_method = self.curvenet_skinning_method(mesh)?;
         if !self.has_value(&prim, JOINT_INDICES)? {
+            if curvenet_method.is_some() {
+                return Err(UsdError::contract(
+                    &mesh.path,
+                    CURVENET_SKINNING_METHOD,
+                    format!("is authored but the mesh has no skin ({JOINT_INDICES} is not authored)"),
+                ));
+            }
             return Ok(None);
         }
         let n_points = mesh.projection_points.len();
@@ -312,6 +355,7 @@ impl Stage {
             joint_weights,
             geom_bind_transform,
             method,
+            curvenet_method,
             constant_influences: constant,
             time_samples,
             anim_joints,
@@ -473,6 +517,29 @@ impl Stage {
             ));
         }
         Ok(CurvenetSkinning::Weights { element_size, joint_indices, joint_weights })
+    }
+
+    /// `curvenet:skinningMethod` of `mesh`, if authored (also in
+    /// [`SkinRig::curvenet_method`]). Refused: time samples, a value that is
+    /// not a token, a token other than `classicLinear`, `dualQuaternion` or
+    /// `centersOfRotation`.
+    pub fn curvenet_skinning_method(&self, mesh: &MeshData) -> Result<Option<CurvenetSkinningMethod>> {
+        let prim = self.prim(&mesh.path)?;
+        let Some(v) = self.static_value(&prim, CURVENET_SKINNING_METHOD)? else { return Ok(None) };
+        let Value::Token(t) = &v else {
+            return Err(UsdError::contract(
+                &mesh.path,
+                CURVENET_SKINNING_METHOD,
+                format!("has type {}, expected a uniform token", value::kind(&v)),
+            ));
+        };
+        CurvenetSkinningMethod::from_token(t.as_str()).map(Some).ok_or_else(|| {
+            UsdError::contract(
+                &mesh.path,
+                CURVENET_SKINNING_METHOD,
+                format!("is {:?}, expected classicLinear, dualQuaternion or centersOfRotation", t.as_str()),
+            )
+        })
     }
 
     /// `curvenet:blendShapeOrder` of `mesh`, if authored.
