@@ -2,7 +2,7 @@
 //! and declared in `schema/curvenet.usda`.
 //!
 //! - [`usd`]: reading a composed USD stage that follows the contract into
-//!   plain data ([`MeshData`], [`CurvenetData`], [`BlendShapeData`]) that the
+//!   plain data ([`MeshData`], [`CurvenetData`], [`BlendShapeData`], [`CageData`]) that the
 //!   core consumes, and (later) writing bake output.
 //!
 //! USD stages are not `Send` (the openusd crate holds `Rc`s): open a stage in
