@@ -14,6 +14,7 @@
 pub mod adjust;
 pub mod binding;
 pub mod blend_shapes;
+pub mod cage;
 pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
