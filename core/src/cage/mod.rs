@@ -30,10 +30,10 @@
 //!   (row-major, row vectors); a frame's joint transforms are **skinning
 //!   transforms** (`inverse(bind) · jointSkel`, the identity at bind).
 
+pub mod cor;
 pub mod mvc;
 
-pub use mvc::{Cage, MVC_EPSILON, Mvc};
-
+pub use cor::{COR_SIGMA, CentersOfRotation, skin_points_cor};
 pub use mvc::{Cage, MVC_EPSILON, Mvc};
 
 use crate::error::Error;
