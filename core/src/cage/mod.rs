@@ -31,9 +31,13 @@
 //!   transforms** (`inverse(bind) · jointSkel`, the identity at bind).
 
 pub mod cor;
+pub mod coupled;
+pub mod maxvol;
 pub mod mvc;
 
 pub use cor::{COR_SIGMA, CentersOfRotation, skin_points_cor};
+pub use coupled::{CageFrame, CageRevApproximation, CageTimings, CoupledRig, CoupledWorkspace, LOCALIZATION_EXPONENT};
+pub use maxvol::{MAXVOL_TOLERANCE, MaxVol};
 pub use mvc::{Cage, MVC_EPSILON, Mvc};
 
 use crate::error::Error;
@@ -98,4 +102,17 @@ impl From<CageError> for Error {
     fn from(e: CageError) -> Self {
         Error::Cage(e)
     }
+}
+
+/// A fan triangulation of a polygon mesh's faces (`[f0, f_k, f_{k+1}]`),
+/// for the centres of rotation and the joints' localisation, which need
+/// triangles.
+pub fn fan_triangles(mesh: &crate::mesh::PolyMesh) -> Vec<[u32; 3]> {
+    let mut out = Vec::new();
+    for f in mesh.faces() {
+        for k in 1..f.len().saturating_sub(1) {
+            out.push([f[0], f[k], f[k + 1]]);
+        }
+    }
+    out
 }

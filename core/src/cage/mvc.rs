@@ -172,12 +172,13 @@ impl Cage {
 
     /// The mean value coordinates of `x` into `out` (one per cage vertex).
     pub fn coordinates(&self, x: [f64; 3], out: &mut [f64]) {
-        mvc_point(&self.points, &self.triangles, self.diagonal, DVec3::from_array(x), out);
+        raw_coordinates(&self.points, &self.triangles, self.diagonal, DVec3::from_array(x), out);
     }
 }
 
-/// The mean value coordinates of one point (see the module docs).
-fn mvc_point(points: &[[f64; 3]], triangles: &[[u32; 3]], diagonal: f64, x: DVec3, w: &mut [f64]) {
+/// The mean value coordinates of one point (see the module docs) with
+/// respect to any triangle set (unvalidated; used raw to localise joints).
+pub(crate) fn raw_coordinates(points: &[[f64; 3]], triangles: &[[u32; 3]], diagonal: f64, x: DVec3, w: &mut [f64]) {
     w.iter_mut().for_each(|v| *v = 0.0);
     // Directions and distances are recomputed per triangle corner: three
     // normalisations per triangle, no per-point scratch.
@@ -279,7 +280,7 @@ impl Mvc {
         let mut phi = vec![0.0; points.len() * c];
         if c > 0 {
             phi.par_chunks_mut(c).zip(points.par_iter()).for_each(|(row, p)| {
-                mvc_point(&cage.points, &cage.triangles, cage.diagonal, DVec3::from_array(*p), row);
+                raw_coordinates(&cage.points, &cage.triangles, cage.diagonal, DVec3::from_array(*p), row);
             });
         }
         Ok(Self { cage, n_points: points.len(), phi })

@@ -2,13 +2,16 @@
 //! built around a mesh, and small vector checks.
 //!
 //! The cage is an icosphere (an icosahedron subdivided `levels` times,
-//! vertices on the unit sphere) mapped onto the axis-aligned ellipsoid
-//! centred on the mesh's bounding box with semi-axes `1.1·√3` times the
-//! box's half-extents. That ellipsoid contains the box (a corner is at
-//! `Σ (h_i / (1.1√3 h_i))² = 0.83` of it); every icosphere face of level
-//! 2 or more lies within 2% of the sphere (its flat faces sag by less
-//! than `1 − cos(16°)`), so the polyhedral cage encloses the whole mesh.
-//! Outward counter-clockwise triangles.
+//! vertices on the unit sphere) fitted star-shaped around the mesh: in the
+//! space where the mesh's bounding box is the cube [-1, 1]³, the vertex in
+//! direction `d` is put at `d·(1.15·r(d) + 0.08)` from the box's centre,
+//! `r(d)` the distance of the farthest mesh point within 25° of `d` — a
+//! coarse inflated hull of the mesh (a real cage hugs its mesh: a cage far
+//! from it makes `Φ` numerically low-rank and the MaxVol system badly
+//! conditioned). Enclosure is then checked, not assumed: every mesh point
+//! must have winding number above 1/2 with respect to the cage, else the
+//! cage is inflated by 10% and checked again. Outward counter-clockwise
+//! triangles.
 #![allow(dead_code)]
 
 use std::collections::HashMap;
@@ -85,9 +88,46 @@ pub fn enclosing_cage(points: &[[f64; 3]], levels: usize) -> (Vec<[f64; 3]>, Vec
     let (lo, hi) = bbox(points);
     let c = (lo + hi) / 2.0;
     let half = ((hi - lo) / 2.0).max(DVec3::splat(1e-9));
-    let (v, f) = icosphere(levels);
-    let axes = half * 1.1 * 3f64.sqrt();
-    (v.iter().map(|d| (c + *d * axes).to_array()).collect(), f)
+    let (dirs, f) = icosphere(levels);
+    // Star-shaped fit in the box-normalised space: each direction's radius
+    // is the farthest point within 25° of it.
+    let u: Vec<DVec3> = points.iter().map(|p| (DVec3::from_array(*p) - c) / half).collect();
+    let cos = 25f64.to_radians().cos();
+    let radius: Vec<f64> = dirs
+        .iter()
+        .map(|d| {
+            let r = u
+                .iter()
+                .filter(|x| x.length() > 0.0 && x.normalize().dot(*d) >= cos)
+                .map(|x| x.length())
+                .fold(0.0, f64::max);
+            if r > 0.0 { r } else { u.iter().map(|x| x.dot(*d)).fold(0.0, f64::max) }
+        })
+        .collect();
+    let mut inflate = 1.15;
+    loop {
+        let cage: Vec<[f64; 3]> =
+            dirs.iter().zip(&radius).map(|(d, r)| (c + half * (*d * (r * inflate + 0.08))).to_array()).collect();
+        if points.iter().all(|p| winding_number(&cage, &f, DVec3::from_array(*p)) > 0.5) {
+            return (cage, f);
+        }
+        inflate *= 1.1;
+        assert!(inflate < 10.0, "no enclosing cage");
+    }
+}
+
+/// The generalized winding number of `q` with respect to a closed triangle
+/// mesh (van Oosterom and Strackee's solid angles): 1 inside, 0 outside.
+pub fn winding_number(points: &[[f64; 3]], triangles: &[[u32; 3]], q: DVec3) -> f64 {
+    let mut omega = 0.0;
+    for t in triangles {
+        let [a, b, c] = t.map(|i| DVec3::from_array(points[i as usize]) - q);
+        let (la, lb, lc) = (a.length(), b.length(), c.length());
+        let num = a.dot(b.cross(c));
+        let den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+        omega += 2.0 * num.atan2(den);
+    }
+    omega / (4.0 * std::f64::consts::PI)
 }
 
 pub fn bbox(points: &[[f64; 3]]) -> (DVec3, DVec3) {
