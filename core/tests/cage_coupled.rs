@@ -9,113 +9,12 @@
 mod cage_common;
 mod common;
 
-use cage_common::{diagonal, enclosing_cage, max_dist, winding_number};
+use cage_common::{diagonal, enclosing_cage, hand_rig, max_dist, winding_number};
 use common::{MESH_DIR, load_obj};
 use curvenet_core::Error;
 use curvenet_core::cage::{CageError, CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
-use curvenet_core::skinning::{self, Influences, Mat4, Skeleton, Skin, SkinningMethod};
+use curvenet_core::skinning::{self, SkinningMethod};
 use glam::{DMat3, DVec3};
-
-fn smoothstep(x: f64) -> f64 {
-    let x = x.clamp(0.0, 1.0);
-    x * x * (3.0 - 2.0 * x)
-}
-
-fn translate(t: DVec3) -> Mat4 {
-    let mut m = skinning::IDENTITY;
-    m[12..15].copy_from_slice(&t.to_array());
-    m
-}
-
-fn rotate_about(axis: DVec3, deg: f64, pivot: DVec3) -> Mat4 {
-    let r = DMat3::from_axis_angle(axis.normalize(), deg.to_radians());
-    let shift = pivot - r * pivot;
-    let c = r.to_cols_array();
-    [c[0], c[1], c[2], 0.0, c[3], c[4], c[5], 0.0, c[6], c[7], c[8], 0.0, shift.x, shift.y, shift.z, 1.0]
-}
-
-/// A hand with its cage (icosphere `levels`) and a wrist → palm → fingers
-/// chain along its height; joints inside the hand near each blend band, weights blending over
-/// 20% and 15% of the height.
-pub struct HandRig {
-    pub points: Vec<[f64; 3]>,
-    pub triangles: Vec<[u32; 3]>,
-    pub cage: Vec<[f64; 3]>,
-    pub cage_triangles: Vec<[u32; 3]>,
-    pub skeleton: Skeleton,
-    pub influences: Influences,
-    pub joints: Vec<DVec3>,
-}
-
-pub fn hand_rig(name: &str, cage_from: Option<&[[f64; 3]]>, levels: usize) -> HandRig {
-    let (mesh, points) = load_obj(&format!("{MESH_DIR}/{name}"));
-    let triangles = fan_triangles(&mesh);
-    let (cage, cage_triangles) = enclosing_cage(cage_from.unwrap_or(&points), levels);
-    let (lo, hi) = cage_common::bbox(&points);
-    let t = |p: &[f64; 3]| (p[1] - lo.y) / (hi.y - lo.y);
-    let mut idx = Vec::new();
-    let mut w = Vec::new();
-    for p in &points {
-        let a = smoothstep((t(p) - 0.25) / 0.2);
-        let b = smoothstep((t(p) - 0.55) / 0.15);
-        idx.extend([0, 1, 2]);
-        w.extend([1.0 - a, a - b, b]);
-    }
-    let influences = Influences::new(points.len(), 3, &idx, &w, 3).unwrap();
-    let joint_at = |h: f64| {
-        let near: Vec<DVec3> =
-            points.iter().filter(|p| (t(p) - h).abs() < 0.02).map(|p| DVec3::from_array(*p)).collect();
-        near.iter().sum::<DVec3>() / near.len() as f64
-    };
-    let joints = vec![joint_at(0.05), joint_at(0.35), joint_at(0.55)];
-    let binds: Vec<Mat4> = joints.iter().map(|j| translate(*j)).collect();
-    let skeleton = Skeleton::new(&[None, Some(0), Some(1)], &binds).unwrap();
-    HandRig { points, triangles, cage, cage_triangles, skeleton, influences, joints }
-}
-
-impl HandRig {
-    pub fn rig(&self, method: SkinningMethod, approx: CageRevApproximation) -> (CoupledRig, Skin) {
-        let skin = Skin::new(self.influences.clone(), skinning::IDENTITY, method).unwrap();
-        let rig = CoupledRig::new(
-            &self.cage,
-            &self.cage_triangles,
-            &self.points,
-            &self.triangles,
-            Some((&self.skeleton, &skin)),
-            approx,
-        )
-        .unwrap();
-        (rig, skin)
-    }
-
-    /// A consistent chain pose: the palm bends 40° about z at joint 1, the
-    /// fingers a further 30° about x at joint 2.
-    pub fn pose(&self, scale: f64) -> Vec<Mat4> {
-        let t1 = rotate_about(DVec3::Z, 40.0 * scale, self.joints[1]);
-        let t2 = skinning::mul(&rotate_about(DVec3::X, 30.0 * scale, self.joints[2]), &t1);
-        vec![skinning::IDENTITY, t1, t2]
-    }
-
-    /// A rest-cage edit: an anisotropic stretch about an off-centre point
-    /// and a bump pushing the cage vertices on one side outward.
-    pub fn edit(&self) -> Vec<[f64; 3]> {
-        let (lo, hi) = cage_common::bbox(&self.cage);
-        let c = (lo + hi) / 2.0 + DVec3::new(0.1, -0.05, 0.0) * (hi - lo);
-        let size = (hi - lo).length();
-        self.cage
-            .iter()
-            .map(|p| {
-                let q = DVec3::from_array(*p);
-                let mut r = c + (q - c) * DVec3::new(1.25, 1.1, 0.9);
-                let side = (q - (lo + hi) / 2.0).normalize();
-                if side.x > 0.5 {
-                    r += side * 0.05 * size * (side.x - 0.5);
-                }
-                r.to_array()
-            })
-            .collect()
-    }
-}
 
 /// Deterministic small offsets, `amplitude` times the diagonal.
 fn offsets(n: usize, amplitude: f64) -> Vec<[f64; 3]> {
