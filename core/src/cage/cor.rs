@@ -351,7 +351,7 @@ pub(crate) fn cor_point(
             ps += (*s * p) * w;
         }
         let sw = if dq.real.dot(pivot_q) < 0.0 { -w } else { w };
-        q = q + dq.real * sw;
+        q += dq.real * sw;
     }
     if !has_scale {
         vs = v;

@@ -5,17 +5,25 @@
 //!
 //! ```text
 //! Mvc::new(cage points, cage triangles, mesh points)      once: Φ (mvc.rs)
+//! MaxVol::new(&mvc)                                       once: #C rows, Φ̃⁻¹ (maxvol.rs)
 //! CentersOfRotation::new(points, triangles, influences)   once, CoR skinning (cor.rs)
-//! MaxVol::new(Φ)                                          once: #C rows, Φ̃⁻¹ (maxvol.rs)
-//! CoupledRig::new(Φ, skeleton, skin, ...)                 once (coupled.rs)
-//! per frame (CoupledRig::evaluate, allocation-free with a CoupledWorkspace):
-//!   C  = rest-cage edit (or C₀)
-//!   CageRev  ∂C′ → ∂C    (Eq. 19, LBS-linearised, 3c × 3c)   when posed-cage offsets are given
-//!   SkelUp   C → A = ΨC, translations re-chained        (Eq. 13, 16)    O(s·c)
-//!   C → M    M = base + Φ(C − C₀)                         O(#P·c)
-//!   skinning M → M′ (LBS, DQS or CoR with CoRs moved by Λ)  O(#P)
-//!   CageUp   Φ̃ C′ = M̃′ − D̃                              O(c²)
+//! CoupledRig::new(cage, mesh, Some((&skeleton, &skin)))   once: all of the above, Ψ, Λ (coupled.rs)
+//! per frame, CoupledRig::evaluate(&CageFrame, &mut CoupledWorkspace, out):
+//!   C = the frame's rest cage (or C₀)
+//!   CageRev  ∂C′ → ∂C, C += ∂C   Eq. 19, LBS-linearised, 3c × 3c LU    only with posed-cage offsets
+//!   SkelUp   A = A₀ + Ψ(C − C₀), translations re-chained (Eq. 13, 16)   O(#J·c)
+//!   C → M    M = base + Φ(C − C₀)                                        O(#P·c)
+//!   skinning M → M′ (LBS, DQS, or CoR with centres p₀ + Λ(C − C₀))       O(#P)
+//!   CageUp   Φ̃ C′ = M̃′ − G·D̃  (back-substitution with Φ̃⁻¹)             O(c²)
 //! ```
+//!
+//! CageRev, SkelUp and CageUp cost the same whatever the mesh's size (see
+//! tests/cage_timing.rs); only `Φ·C` and the skinning touch every vertex.
+//! A frame allocates nothing once its workspace has seen one, except the
+//! per-joint decomposition (`#J` entries) that dual-quaternion and
+//! centre-of-rotation skinning make per call, as [`crate::skinning`]'s
+//! dual quaternions do. The decisions the paper leaves open are listed in
+//! [`coupled`]'s docs.
 //!
 //! # Conventions
 //!
