@@ -119,6 +119,7 @@ fn attempt(topology: &PolyMesh, counts: &[u32], points: &[[f64; 3]], seed: u64) 
         curvenets: std::slice::from_ref(&curvenet),
         blend_shapes: Vec::new(),
         skinning: None,
+        cage: None,
         options: Default::default(),
     };
     let e = match Deformer::new(&input) {

@@ -36,10 +36,11 @@ use std::time::Instant;
 
 use crate::binding::{BindOptions, Binding, Surface};
 use crate::blend_shapes::{BlendShape, BlendShapes};
+use crate::cage::{CageFrame, CageRevApproximation, CentersOfRotation, CoupledRig, CoupledWorkspace};
 use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
-use crate::skinning::{Mat4, Skin, SplineSkinning};
+use crate::skinning::{Mat4, Skin, SkinningMethod, SplineSkinning};
 use crate::solve::{FrameInput, Workspace};
 
 /// A mesh in its projection pose (the pose the curvenets were drawn on):
@@ -60,6 +61,16 @@ pub struct CurvenetInput<'a> {
     pub sample_density: f64,
 }
 
+/// A closed triangle cage around the mesh (Corda et al. 2020,
+/// [`crate::cage`]): its rest points at bind — the cage the mesh's
+/// projection points are bound to, `M₀ = Φ C₀` — and its outward
+/// counter-clockwise triangles.
+#[derive(Debug, Clone, Copy)]
+pub struct CageInput<'a> {
+    pub points: &'a [[f64; 3]],
+    pub triangles: &'a [[u32; 3]],
+}
+
 /// Everything a deformer is built from.
 #[derive(Debug, Clone)]
 pub struct DeformerInput<'a> {
@@ -71,6 +82,13 @@ pub struct DeformerInput<'a> {
     /// The rig underneath, when the mesh is skinned in process: frames then
     /// give joint transforms ([`Frame::joint_transforms`]).
     pub skinning: Option<Rig>,
+    /// A cage coupled with the rig (Corda et al. 2020, [`crate::cage`]):
+    /// with a [`Rig`] (which then needs its [`Rig::skeleton`]) the cage and
+    /// the skeleton are synchronised (SkelUp, CageUp, CageRev) and the
+    /// frame's rest pose is the coupled result; without one the cage alone
+    /// deforms the mesh, `M = Φ C` (+ the frame's sculpt). Frames edit it
+    /// with [`Frame::rest_cage`] and [`Frame::posed_cage_offsets`].
+    pub cage: Option<CageInput<'a>>,
     pub options: DeformerOptions,
 }
 
@@ -90,6 +108,10 @@ pub struct Rig {
     /// ([`SplineSkinning::pose_flexible`]); 0: the fixed-ratio fit
     /// ([`SplineSkinning::pose`]).
     pub flexible_iterations: usize,
+    /// The skeleton (hierarchy and bind transforms), which a cage coupled
+    /// with the rig needs to relocate the joints (SkelUp); `None` for a rig
+    /// without a cage.
+    pub skeleton: Option<crate::skinning::Skeleton>,
 }
 
 /// G¹-flexible spline skinning done over a deformer's frames so far.
@@ -156,6 +178,15 @@ pub struct Frame<'a> {
     /// spline-skinned curvenet's posed pool is its spline skinning (in place
     /// of its entry of `posed`).
     pub joint_transforms: Option<&'a [Mat4]>,
+    /// Rest-cage edits `C` this frame (one point per cage vertex, the
+    /// mesh's space), for a deformer with a cage ([`DeformerInput::cage`]);
+    /// `None`: the cage at bind. The mesh's rest pose follows as `M =
+    /// base + Φ(C − C₀)` (`base`: the points above, sculpted), the joints by
+    /// SkelUp.
+    pub rest_cage: Option<&'a [[f64; 3]]>,
+    /// Posed-cage edits `∂C′` this frame (one offset per cage vertex, the
+    /// skinned points' space), taken back to the rest cage by CageRev.
+    pub posed_cage_offsets: Option<&'a [[f64; 3]]>,
 }
 
 /// Times of a deformer's construction, milliseconds.
@@ -183,6 +214,8 @@ struct Scratch {
     skinned: Vec<[f64; 3]>,
     /// The spline-skinned pool of each curvenet (empty for the others).
     pools: Vec<Vec<[f64; 3]>>,
+    /// The coupled cage's buffers.
+    cage: CoupledWorkspace,
 }
 
 /// A bound mesh: the binding, the blend shapes and a pool of workspaces.
@@ -194,6 +227,7 @@ pub struct Deformer {
     timings: DeformerTimings,
     pool: Mutex<Vec<Scratch>>,
     rig: Option<Rig>,
+    cage: Option<CoupledRig>,
     flexible_iterations: AtomicU64,
     flexible_poses: AtomicU64,
 }
@@ -219,6 +253,8 @@ impl Deformer {
             check_rig(rig, n, input.curvenets)?;
         }
         let mesh = PolyMesh::new(m.face_vertex_counts, m.face_vertex_indices, n)?;
+        let mut rig = input.skinning.clone();
+        let cage = rig_layers(&mesh, m.projection_points, &mut rig, input.cage.as_ref())?;
         let surface = Surface::new(&mesh, m.projection_points)?;
         let surface_ms = ms(t0);
         input.options.bind.cancel.check("the curvenet analysis")?;
@@ -255,7 +291,8 @@ impl Deformer {
             projection_points: m.projection_points.to_vec(),
             timings,
             pool: Mutex::new(Vec::new()),
-            rig: input.skinning.clone(),
+            rig,
+            cage,
             flexible_iterations: AtomicU64::new(0),
             flexible_poses: AtomicU64::new(0),
         })
@@ -304,6 +341,11 @@ impl Deformer {
             }
             (_, None) => None,
         };
+        if self.cage.is_none() && (frame.rest_cage.is_some() || frame.posed_cage_offsets.is_some()) {
+            return Err(Error::Unsupported {
+                what: "rest-cage points or posed-cage offsets for a deformer without a cage (DeformerInput::cage)",
+            });
+        }
         let n_nets = self.binding.n_curvenets();
         if skinning.is_some() && !frame.posed.is_empty() && frame.posed.len() != n_nets {
             return Err(Error::CountMismatch { what: "posed curvenets", expected: n_nets, got: frame.posed.len() });
@@ -327,14 +369,44 @@ impl Deformer {
                 }
                 _ => frame.rest,
             };
-            // The rig: the rest pose skinned, spline-skinned curvenets posed.
+            // The rig: the rest pose skinned (through the coupled cage when
+            // there is one), spline-skinned curvenets posed.
             let mut skinned_posed: Vec<Option<&[[f64; 3]]>> = Vec::new();
-            let rest = match skinning {
-                None => rest,
-                Some((rig, transforms)) => {
+            let rest = match (skinning, &self.cage) {
+                (None, None) => rest,
+                (None, Some(cage)) => {
+                    // The cage alone (or a rig posed at bind this frame).
+                    let base = rest.unwrap_or(&self.projection_points);
+                    s.skinned.resize(base.len(), [0.0; 3]);
+                    let f = CageFrame {
+                        base: Some(base),
+                        rest_cage: frame.rest_cage,
+                        joint_transforms: None,
+                        posed_cage_offsets: frame.posed_cage_offsets,
+                    };
+                    cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
+                    Some(&s.skinned[..])
+                }
+                (Some((rig, frame_transforms)), cage) => {
                     let bind = rest.unwrap_or(&self.projection_points);
                     s.skinned.resize(bind.len(), [0.0; 3]);
-                    rig.skin.skin_points(bind, transforms, &mut s.skinned)?;
+                    let transforms = match cage {
+                        None => {
+                            rig.skin.skin_points(bind, frame_transforms, &mut s.skinned)?;
+                            frame_transforms
+                        }
+                        Some(cage) => {
+                            let f = CageFrame {
+                                base: Some(bind),
+                                rest_cage: frame.rest_cage,
+                                joint_transforms: Some(frame_transforms),
+                                posed_cage_offsets: frame.posed_cage_offsets,
+                            };
+                            cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
+                            // The curvenets follow the joints SkelUp moved.
+                            s.cage.transforms()
+                        }
+                    };
                     s.pools.resize_with(n_nets, Vec::new);
                     for (k, spline) in rig.curvenets.iter().enumerate() {
                         let Some(spline) = spline else { continue };
@@ -404,6 +476,7 @@ impl Deformer {
             unposed: vec![None; self.binding.n_curvenets()],
             skinned: Vec::new(),
             pools: Vec::new(),
+            cage: CoupledWorkspace::default(),
         })
     }
 
@@ -447,6 +520,14 @@ impl Deformer {
     pub fn rig(&self) -> Option<&Rig> {
         self.rig.as_ref()
     }
+    /// The coupled cage, when the deformer has one: its vertex and
+    /// triangle counts ([`CoupledRig::n_cage_vertices`],
+    /// [`CoupledRig::n_cage_triangles`]), MaxVol rows
+    /// ([`CoupledRig::maxvol_rows`]), the condition number of the square
+    /// system ([`CoupledRig::condition`]) and `Φ`'s bytes ([`CoupledRig::phi_bytes`]).
+    pub fn cage(&self) -> Option<&CoupledRig> {
+        self.cage.as_ref()
+    }
     /// G¹-flexible spline skinning done by this deformer's frames so far
     /// (zero unless [`Rig::flexible_iterations`] is positive).
     pub fn flexible_stats(&self) -> FlexibleStats {
@@ -455,6 +536,46 @@ impl Deformer {
             poses: self.flexible_poses.load(Ordering::Relaxed),
         }
     }
+}
+
+/// The rig's layers that need the mesh: a centres-of-rotation skin gets its
+/// centres (Eq. 5 on the projection pose, fan-triangulated) unless it has
+/// them, and a cage becomes the coupled rig (with the rig's skeleton and
+/// skin, else alone).
+fn rig_layers(
+    mesh: &PolyMesh,
+    points: &[[f64; 3]],
+    rig: &mut Option<Rig>,
+    cage: Option<&CageInput<'_>>,
+) -> Result<Option<CoupledRig>> {
+    let needs_triangles =
+        cage.is_some() || rig.as_ref().is_some_and(|r| r.skin.method() == SkinningMethod::CentersOfRotation);
+    if !needs_triangles {
+        return Ok(None);
+    }
+    let triangles = crate::cage::fan_triangles(mesh);
+    if let Some(r) = rig.as_mut()
+        && r.skin.method() == SkinningMethod::CentersOfRotation
+        && r.skin.centers_of_rotation().is_none()
+    {
+        let centers = CentersOfRotation::new(points, &triangles, r.skin.influences())?;
+        r.skin = r.skin.clone().with_centers_of_rotation(centers.centers().to_vec())?;
+    }
+    let Some(cage) = cage else { return Ok(None) };
+    let skinning = match rig.as_ref() {
+        None => None,
+        Some(r) => match &r.skeleton {
+            Some(skeleton) => Some((skeleton, &r.skin)),
+            None => {
+                return Err(crate::cage::CageError::Missing {
+                    what: "a cage coupled with a rig needs the rig's skeleton (Rig::skeleton)",
+                }
+                .into());
+            }
+        },
+    };
+    CoupledRig::new(cage.points, cage.triangles, points, &triangles, skinning, CageRevApproximation::default())
+        .map(Some)
 }
 
 /// Refuses a rig whose sizes do not match the mesh (`n` points) or the curvenets.

@@ -160,6 +160,11 @@ pub enum Error {
     /// Skinning input (influences, transforms, spline weights) refused; names the element.
     #[error(transparent)]
     Skinning(crate::skinning::SkinningError),
+    /// Cage input (the cage's triangles and points, a frame's cage arrays)
+    /// refused, or a coupled cage-and-skeleton rig that cannot be built;
+    /// names the face, edge, vertex or field.
+    #[error(transparent)]
+    Cage(crate::cage::CageError),
     /// The caller cancelled the computation ([`crate::Cancel`]) during `stage`.
     #[error("cancelled during {stage}")]
     Cancelled { stage: &'static str },

@@ -14,6 +14,7 @@
 pub mod adjust;
 pub mod binding;
 pub mod blend_shapes;
+pub mod cage;
 pub mod cancel;
 pub mod cholesky;
 pub mod closest_point;
@@ -38,7 +39,8 @@ pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use deformer::{
-    BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, FlexibleStats, Frame, MeshInput, Rig,
+    BlendShapeMode, CageInput, CurvenetInput, Deformer, DeformerInput, DeformerOptions, FlexibleStats, Frame,
+    MeshInput, Rig,
 };
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;

@@ -42,6 +42,7 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
         curvenets: &nets,
         blend_shapes: shapes(pts.len()),
         skinning: None,
+        cage: None,
         options: DeformerOptions::default(),
     };
     let d = Deformer::new(&input).unwrap();
@@ -136,6 +137,7 @@ fn errors_name_the_curvenet() {
         curvenets: &nets,
         blend_shapes: Vec::new(),
         skinning: None,
+        cage: None,
         options: DeformerOptions::default(),
     };
     let e = Deformer::new(&input).unwrap_err();
@@ -185,10 +187,15 @@ fn a_rigged_frame_is_skinning_then_spline_skinning_then_the_solve() {
             curvenets: &nets,
             blend_shapes: shapes(n),
             skinning: rig,
+            cage: None,
             options: DeformerOptions::default(),
         };
-        let rig =
-            curvenet_core::Rig { skin: skin.clone(), curvenets: vec![Some(spline.clone())], flexible_iterations: 0 };
+        let rig = curvenet_core::Rig {
+            skin: skin.clone(),
+            curvenets: vec![Some(spline.clone())],
+            flexible_iterations: 0,
+            skeleton: None,
+        };
         let rigged = Deformer::new(&input(Some(rig))).unwrap();
         let plain = Deformer::new(&input(None)).unwrap();
         // By hand: blend shapes on the bind pose, skinning, the spline-skinned pool.
@@ -239,7 +246,8 @@ fn a_rigged_frame_is_skinning_then_spline_skinning_then_the_solve() {
         },
         curvenets: &nets,
         blend_shapes: Vec::new(),
-        skinning: Some(curvenet_core::Rig { skin, curvenets: vec![None], flexible_iterations: 0 }),
+        skinning: Some(curvenet_core::Rig { skin, curvenets: vec![None], flexible_iterations: 0, skeleton: None }),
+        cage: None,
         options: DeformerOptions::default(),
     };
     assert!(matches!(Deformer::new(&bad), Err(Error::CountMismatch { expected, got: 10, .. }) if expected == n));

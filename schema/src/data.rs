@@ -107,6 +107,7 @@ pub fn deformer_input<'a>(
         curvenets,
         blend_shapes: Vec::new(),
         skinning: None,
+        cage: None,
         options: Default::default(),
     }
 }

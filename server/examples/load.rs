@@ -126,6 +126,7 @@ fn main() {
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
         skinning: None,
+        cage: None,
         options: DeformerOptions::default(),
     })
     .unwrap();

@@ -39,6 +39,7 @@ fn reference(req: &BindingRequest) -> Deformer {
         curvenets: &curvenets,
         blend_shapes: Vec::new(),
         skinning: None,
+        cage: None,
         options: DeformerOptions::default(),
     })
     .unwrap()

@@ -40,6 +40,7 @@ fn reference() -> &'static Deformer {
             curvenets: &curvenets,
             blend_shapes: Vec::new(),
             skinning: None,
+            cage: None,
             options: DeformerOptions::default(),
         })
         .unwrap()

@@ -71,6 +71,7 @@ impl Shot {
             method: match rig.method {
                 SkinningMethod::ClassicLinear => SkinMethod::ClassicLinear,
                 SkinningMethod::DualQuaternion => SkinMethod::DualQuaternion,
+                other => panic!("the shot's skinning method {other:?} has no wire spelling"),
             },
             curvenets,
             flexible_iterations: 0,

@@ -37,7 +37,7 @@ mod lbs;
 pub mod spline;
 mod weights;
 
-pub use dqs::{DualQuat, skin_points_dqs};
+pub use dqs::{DualQuat, SCALE_TOLERANCE, skin_points_dqs};
 pub use lbs::skin_points_lbs;
 pub use spline::{Junction, JunctionKind, SplineEnd, SplineSkinning, SplineSkinningOptions};
 pub use weights::{ControlPointWeights, DERIVED_WEIGHT_SAMPLES, SurfaceWeights, WeightField};
@@ -60,18 +60,39 @@ pub enum SkinningMethod {
     /// translation of each skinning transform, with any scale or shear of
     /// the transform blended linearly first (UsdSkel's semantics, [`skin_points_dqs`]).
     DualQuaternion,
+    /// Optimised centres of rotation (Le and Hodgins 2016, as Corda et al.
+    /// 2020 use it, [`crate::cage::cor`]): each point rotates by its blended
+    /// quaternion about its own centre of rotation, which moves by linear
+    /// blending. Not a UsdSkel token: USD spells it with the custom
+    /// attribute `uniform token curvenet:skinningMethod = "centersOfRotation"`,
+    /// which overrides `skel:skinningMethod` ([`Self::from_curvenet_token`]).
+    /// Needs the points' centres ([`Skin::with_centers_of_rotation`]).
+    CentersOfRotation,
 }
 
 impl SkinningMethod {
-    /// UsdSkel's token for the method.
+    /// The method's token: UsdSkel's for linear and dual-quaternion
+    /// skinning, `centersOfRotation` (the `curvenet:skinningMethod`
+    /// spelling) for centres of rotation.
     pub fn token(self) -> &'static str {
         match self {
             SkinningMethod::ClassicLinear => "classicLinear",
             SkinningMethod::DualQuaternion => "dualQuaternion",
+            SkinningMethod::CentersOfRotation => "centersOfRotation",
         }
     }
 
-    /// The method named by a UsdSkel token, if it is one.
+    /// The method named by a `curvenet:skinningMethod` token: the UsdSkel
+    /// tokens ([`Self::from_token`]) and `centersOfRotation`.
+    pub fn from_curvenet_token(token: &str) -> Option<Self> {
+        match token {
+            "centersOfRotation" => Some(SkinningMethod::CentersOfRotation),
+            t => Self::from_token(t),
+        }
+    }
+
+    /// The method named by a UsdSkel token, if it is one (UsdSkel's
+    /// `allowedTokens`: `centersOfRotation` is not one of them).
     pub fn from_token(token: &str) -> Option<Self> {
         match token {
             "classicLinear" => Some(SkinningMethod::ClassicLinear),
@@ -331,6 +352,8 @@ pub struct Skin {
     influences: Influences,
     geom_bind: Mat4,
     method: SkinningMethod,
+    /// Each point's centre of rotation, for [`SkinningMethod::CentersOfRotation`].
+    centers: Option<Vec<[f64; 3]>>,
 }
 
 impl Skin {
@@ -338,7 +361,7 @@ impl Skin {
     /// when unauthored), affine.
     pub fn new(influences: Influences, geom_bind: Mat4, method: SkinningMethod) -> Result<Self> {
         check_affine(&geom_bind, "geomBindTransform", 0)?;
-        Ok(Self { influences, geom_bind, method })
+        Ok(Self { influences, geom_bind, method, centers: None })
     }
 
     pub fn influences(&self) -> &Influences {
@@ -353,14 +376,43 @@ impl Skin {
         self.method
     }
 
+    /// Gives the skin each point's centre of rotation (mesh space), which
+    /// [`SkinningMethod::CentersOfRotation`] needs: computed from the
+    /// mesh's bind pose with [`crate::cage::CentersOfRotation::new`].
+    pub fn with_centers_of_rotation(mut self, centers: Vec<[f64; 3]>) -> Result<Self> {
+        if centers.len() != self.influences.n_points() {
+            return Err(Error::CountMismatch {
+                what: "centres of rotation",
+                expected: self.influences.n_points(),
+                got: centers.len(),
+            });
+        }
+        crate::mesh::check_finite(&centers, "centre of rotation")?;
+        self.centers = Some(centers);
+        Ok(self)
+    }
+
+    /// The points' centres of rotation, when given.
+    pub fn centers_of_rotation(&self) -> Option<&[[f64; 3]]> {
+        self.centers.as_deref()
+    }
+
     /// Skins `points` (the mesh's bind pose, one per influenced point) by the
-    /// skinning transforms `transforms` (one per joint) into `out`.
+    /// skinning transforms `transforms` (one per joint) into `out`. Centres
+    /// of rotation need the skin's centres ([`Self::with_centers_of_rotation`]).
     pub fn skin_points(&self, points: &[[f64; 3]], transforms: &[Mat4], out: &mut [[f64; 3]]) -> Result<()> {
-        skin_points(self.method, points, &self.influences, &self.geom_bind, transforms, out)
+        match (self.method, &self.centers) {
+            (SkinningMethod::CentersOfRotation, Some(c)) => {
+                crate::cage::skin_points_cor(points, c, &self.influences, &self.geom_bind, transforms, out)
+            }
+            _ => skin_points(self.method, points, &self.influences, &self.geom_bind, transforms, out),
+        }
     }
 }
 
-/// Skins `points` with `method`: [`skin_points_lbs`] or [`skin_points_dqs`].
+/// Skins `points` with `method`: [`skin_points_lbs`] or [`skin_points_dqs`];
+/// centres of rotation need the points' centres ([`crate::cage::skin_points_cor`],
+/// [`Skin::skin_points`]) and are refused here with [`Error::Unsupported`].
 pub fn skin_points(
     method: SkinningMethod,
     points: &[[f64; 3]],
@@ -372,6 +424,9 @@ pub fn skin_points(
     match method {
         SkinningMethod::ClassicLinear => skin_points_lbs(points, influences, geom_bind, transforms, out),
         SkinningMethod::DualQuaternion => skin_points_dqs(points, influences, geom_bind, transforms, out),
+        SkinningMethod::CentersOfRotation => Err(Error::Unsupported {
+            what: "centres-of-rotation skinning without the points' centres (Skin::with_centers_of_rotation)",
+        }),
     }
 }
 

@@ -495,6 +495,8 @@ fn solve(job: &MeshJob, t: f64, input: &MeshFrame, solve_ns: &AtomicU64) -> CliR
         blend_shape_mode: job.mode,
         adjustments: &input.adjustments,
         joint_transforms: input.transforms.as_deref(),
+        rest_cage: None,
+        posed_cage_offsets: None,
     };
     let mut out = vec![[0.0; 3]; job.deformer.n_vertices()];
     job.deformer.frame(&frame, &mut out, None).map_err(|source| CliError::Core {

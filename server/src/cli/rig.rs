@@ -130,7 +130,7 @@ impl MeshRig {
         let skin = Skin::new(influences, rig.geom_bind_transform, rig.method).map_err(core(mesh.path.clone()))?;
         Ok(Some(Self {
             joints: JointReader { rig, skeleton },
-            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible },
+            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible, skeleton: None },
             unnormalized,
             nets: net_rigs,
             spline_ms,

@@ -250,6 +250,7 @@ pub fn build(
         curvenets: &curvenets,
         blend_shapes,
         skinning: rig,
+        cage: None,
         options: DeformerOptions::default().with_bind(options.bind_options(cancel)),
     };
     let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;
@@ -360,7 +361,12 @@ fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError>
         SkinMethod::DualQuaternion => SkinningMethod::DualQuaternion,
     };
     let skin_core = Skin::new(influences, geom_bind, method).map_err(bind("skin".into()))?;
-    Ok(Rig { skin: skin_core, curvenets: splines, flexible_iterations: skin.flexible_iterations as usize })
+    Ok(Rig {
+        skin: skin_core,
+        curvenets: splines,
+        flexible_iterations: skin.flexible_iterations as usize,
+        skeleton: None,
+    })
 }
 
 /// Bytes of an entry besides its measured arrays: the entry, its strings

@@ -282,6 +282,12 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
             d.what = what("skinning");
             Code::InvalidParameter
         }
+        // The cage of a coupled cage-and-skeleton rig (or a frame's cage
+        // arrays): the message names the face, edge, vertex or field.
+        E::Cage(_) => {
+            d.what = what("cage");
+            Code::InvalidMesh
+        }
         E::Empty { what: w } => {
             d.what = what(w);
             Code::EmptyInput
@@ -488,6 +494,7 @@ fn is_mesh_error(e: &curvenet_core::Error) -> bool {
         | E::RepeatedFaceVertex { .. } => true,
         E::Empty { .. }
         | E::Skinning(_)
+        | E::Cage(_)
         | E::IndexOutOfRange { .. }
         | E::NonFinite { .. }
         | E::NonFiniteScalar { .. }

@@ -360,6 +360,8 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
         },
         adjustments: &frame.adjustments,
         joint_transforms: frame.joint_transforms.as_deref(),
+        rest_cage: None,
+        posed_cage_offsets: None,
     };
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);

@@ -798,6 +798,7 @@ fn refusal(index: usize, stage: &ViewerStage) -> Option<ViewerRefusal> {
             curvenets: &nets,
             blend_shapes: Vec::new(),
             skinning: None,
+            cage: None,
             options: DeformerOptions::default().with_bind(bind),
         };
         error = Some(Deformer::new(&input).err()?);
