@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 use curvenet_core::skinning::Mat4;
 use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Frame};
 use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
-use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
+use curvenet_schema::{AdjustmentData, CageData, CurvenetData, MeshData};
 use rayon::prelude::*;
 
 use super::rig::{JointReader, MeshRig};
@@ -155,6 +155,10 @@ struct MeshJob {
     bind_points: Option<Vec<[f64; 3]>>,
     /// The `CurvenetAdjustment` prims of each curvenet (binding order).
     adjustments: Vec<Vec<AdjustmentData>>,
+    /// The mesh's cage (`rel curvenet:cage`), read whole at bind: its
+    /// rest-cage edits and posed-cage offsets are evaluated per frame off
+    /// the stage's thread ([`CageData::frame`]).
+    cage: Option<CageData>,
 }
 
 /// One mesh's input at one frame.
@@ -220,10 +224,11 @@ pub fn run(args: &Args) -> CliResult {
                 (Some(_), true) => Some(stage.rest_points(&m, None)?),
                 _ => None,
             };
-            Ok((m, n, r, rig, order, bind_points))
+            let cage = stage.cage(&m)?;
+            Ok((m, n, r, rig, order, bind_points, cage))
         })
         .collect::<CliResult<Vec<_>>>()?;
-    for (m, _, _, rig, _, _) in &inputs {
+    for (m, _, _, rig, _, _, _) in &inputs {
         if let Some(rig) = rig
             && let Some(&p) = rig.unnormalized.first()
         {
@@ -241,7 +246,7 @@ pub fn run(args: &Args) -> CliResult {
         inputs
             .into_par_iter()
             .zip(adjustments)
-            .map(|((m, n, r, rig, order, bind_points), a)| bind(m, n, r, rig, order, bind_points, a))
+            .map(|((m, n, r, rig, order, bind_points, cage), a)| bind(m, n, r, rig, order, bind_points, a, cage))
             .collect::<CliResult<_>>()
     })?;
     let bind_ms = ms(t_bind.elapsed());
@@ -365,6 +370,10 @@ pub(super) fn frames(
         if let Some(rig) = stage.skin_rig(m)? {
             times.extend(&rig.time_samples);
         }
+        // A caged mesh: the cage's rest-cage edits and posed-cage offsets.
+        if let Some(cage) = stage.cage(m)? {
+            times.extend(cage.sample_times());
+        }
     }
     times.sort_by(f64::total_cmp);
     times.dedup();
@@ -386,6 +395,7 @@ fn bind(
     order: BlendShapeOrder,
     bind_points: Option<Vec<[f64; 3]>>,
     adjustments: Vec<Vec<AdjustmentData>>,
+    cage: Option<CageData>,
 ) -> CliResult<MeshJob> {
     // A skinned mesh reads its points per frame only when they are animated.
     let reads_rest = match &rig {
@@ -396,13 +406,13 @@ fn bind(
         Some(r) => (Some(r.joints), Some(r.skinning)),
         None => (None, None),
     };
-    let deformer = super::deformer(&mesh, &nets, skinning)?;
+    let deformer = super::deformer(&mesh, &nets, skinning, cage.as_ref())?;
     let mode = match order {
         BlendShapeOrder::BeforeSkinning => BlendShapeMode::Before,
         BlendShapeOrder::AfterSolve => BlendShapeMode::After,
     };
     let has_shapes = !mesh.blend_shapes.is_empty();
-    Ok(MeshJob { mesh, nets, deformer, reads_rest, has_shapes, mode, joints, bind_points, adjustments })
+    Ok(MeshJob { mesh, nets, deformer, reads_rest, has_shapes, mode, joints, bind_points, adjustments, cage })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame
@@ -495,10 +505,14 @@ fn solve(job: &MeshJob, t: f64, input: &MeshFrame, solve_ns: &AtomicU64) -> CliR
         blend_shape_mode: job.mode,
         adjustments: &input.adjustments,
         joint_transforms: input.transforms.as_deref(),
-        rest_cage: None,
-        posed_cage_offsets: None,
+        ..Frame::default()
     };
+    let cage = job.cage.as_ref().map(|c| c.frame(Some(t)));
     let mut out = vec![[0.0; 3]; job.deformer.n_vertices()];
+    let frame = match &cage {
+        Some(c) => Frame { rest_cage: c.rest_cage(), posed_cage_offsets: c.posed_cage_offsets(), ..frame },
+        None => frame,
+    };
     job.deformer.frame(&frame, &mut out, None).map_err(|source| CliError::Core {
         context: format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets)),
         source,

@@ -85,9 +85,37 @@ struct MeshReport {
     /// skinning of its curvenets.
     #[serde(skip_serializing_if = "Option::is_none")]
     rig: Option<RigReport>,
+    /// The cage coupled with the skeleton (`rel curvenet:cage`, Corda et al. 2020).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cage: Option<CageReport>,
     /// With `--bind`: the binding of the mesh to its curvenets.
     #[serde(skip_serializing_if = "Option::is_none")]
     binding: Option<BindingReport>,
+}
+
+/// A mesh's cage (`rel curvenet:cage`) as the bake couples it with the
+/// mesh's skeleton: `Φ`, the MaxVol rows and their square system.
+#[derive(Serialize)]
+struct CageReport {
+    path: String,
+    vertices: usize,
+    triangles: usize,
+    /// Coupled with the mesh's UsdSkel skeleton (else the cage alone deforms the mesh).
+    coupled: bool,
+    /// The mesh vertices whose rows of `Φ` form the square system CageUp solves.
+    maxvol_rows: Vec<usize>,
+    /// The 2-norm condition number of that square system.
+    condition: f64,
+    /// Memory of the mean value coordinates `Φ`.
+    phi_bytes: usize,
+    /// `max |M₀ − Φ C₀|` over the mesh's bind points (linear precision: rounding).
+    bind_residual: f64,
+    /// Time samples of the cage's `points` (rest-cage edits).
+    rest_cage_frames: usize,
+    /// Time samples of `primvars:curvenet:posedCageOffsets` (posed-cage edits).
+    posed_offset_frames: usize,
+    /// Wall time of `Φ`, MaxVol and the coupling's precomputation.
+    precompute_ms: f64,
 }
 
 /// The rig found for a mesh (`super::rig::MeshRig`).
@@ -429,7 +457,13 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
         Some(_) if !m.blend_shapes.is_empty() => Some(stage.blend_shape_weights(m, time)?),
         _ => None,
     };
-    let rig = rig_report(stage, m, time)?;
+    let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
+    let mesh_rig = super::rig::MeshRig::new(stage, m, &nets, 0)?;
+    let cage = cage_report(stage, m, mesh_rig.as_ref())?;
+    let rig = match mesh_rig {
+        Some(r) => Some(rig_report(stage, m, &nets, r, time)?),
+        None => None,
+    };
     Ok(MeshReport {
         path: m.path.clone(),
         vertices: n,
@@ -452,14 +486,72 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
             .collect(),
         blend_shape_weights,
         rig,
+        cage,
         binding: None,
     })
 }
 
-fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Option<RigReport>> {
+/// The cage of `m`, coupled as the bake couples it (`Deformer::new` does
+/// the same precomputation); `None` when the mesh has no `rel curvenet:cage`.
+fn cage_report(stage: &Stage, m: &MeshData, rig: Option<&super::rig::MeshRig>) -> CliResult<Option<CageReport>> {
+    use curvenet_core::cage::{CageRevApproximation, CoupledRig};
+    let Some(cage) = stage.cage(m)? else { return Ok(None) };
+    let start = std::time::Instant::now();
+    let topo = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())
+        .map_err(|source| CliError::Core { context: m.path.clone(), source })?;
+    let triangles = curvenet_core::cage::fan_triangles(&topo);
+    let skinning = rig.map(|r| (&r.joints.skeleton, &r.skinning.skin));
+    let coupled = CoupledRig::new(
+        &cage.rest_points,
+        &cage.triangles,
+        &m.projection_points,
+        &triangles,
+        skinning,
+        CageRevApproximation::default(),
+    )
+    .map_err(|source| CliError::Core { context: format!("{} (the cage of {})", cage.path, m.path), source })?;
+    Ok(Some(CageReport {
+        path: cage.path.clone(),
+        vertices: coupled.n_cage_vertices(),
+        triangles: coupled.n_cage_triangles(),
+        coupled: rig.is_some(),
+        maxvol_rows: coupled.maxvol_rows().to_vec(),
+        condition: coupled.condition(),
+        phi_bytes: coupled.phi_bytes(),
+        bind_residual: coupled.max_bind_residual(),
+        rest_cage_frames: cage.rest_samples.len(),
+        posed_offset_frames: cage.posed_offset_samples.len(),
+        precompute_ms: start.elapsed().as_secs_f64() * 1e3,
+    }))
+}
+
+fn cage_text(s: &mut String, c: &CageReport) {
+    let _ = writeln!(
+        s,
+        "  cage: {} ({} vertices, {} triangles), {}; MaxVol rows: {} (condition {:.3e}); Φ {:.1} MB; bind \
+         residual {:.2e}; rest-cage edits at {} frames, posed-cage edits at {} frames; precompute {:.0} ms",
+        c.path,
+        c.vertices,
+        c.triangles,
+        if c.coupled { "coupled with the skeleton (SkelUp, CageUp, CageRev)" } else { "alone (M = ΦC)" },
+        c.maxvol_rows.len(),
+        c.condition,
+        c.phi_bytes as f64 / 1e6,
+        c.bind_residual,
+        c.rest_cage_frames,
+        c.posed_offset_frames,
+        c.precompute_ms
+    );
+}
+
+fn rig_report(
+    stage: &Stage,
+    m: &MeshData,
+    nets: &[CurvenetData],
+    rig: super::rig::MeshRig,
+    time: Option<f64>,
+) -> CliResult<RigReport> {
     use curvenet_core::skinning::JunctionKind;
-    let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
-    let Some(rig) = super::rig::MeshRig::new(stage, m, &nets, 0)? else { return Ok(None) };
     let transforms = match time {
         Some(_) => Some(rig.joints.read_transforms(stage, time)?),
         None => None,
@@ -513,13 +605,13 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
         });
     }
     let order = stage.blend_shape_order(m)?.unwrap_or(curvenet_schema::usd::BlendShapeOrder::BeforeSkinning);
-    Ok(Some(RigReport {
+    Ok(RigReport {
         skel_root: rig.joints.rig.skel_root.clone(),
         skeleton: rig.joints.rig.skeleton.clone(),
         joints: rig.joints.rig.joints.clone(),
         animation: rig.joints.rig.animation.clone(),
         animation_frames: rig.joints.rig.time_samples.len(),
-        method: rig.joints.rig.method.token(),
+        method: rig.skinning.skin.method().token(),
         influences_per_point: rig.joints.rig.element_size,
         rigid: rig.joints.rig.constant_influences,
         geom_bind_transform: rig.joints.rig.geom_bind_transform,
@@ -530,7 +622,7 @@ fn rig_report(stage: &Stage, m: &MeshData, time: Option<f64>) -> CliResult<Optio
         },
         curvenets,
         spline_precompute_ms: rig.spline_ms,
-    }))
+    })
 }
 
 fn rig_text(s: &mut String, r: &RigReport) {
@@ -592,7 +684,9 @@ fn rig_text(s: &mut String, r: &RigReport) {
 fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingReport> {
     let nets = m.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<Vec<_>, _>>()?;
     let start = std::time::Instant::now();
-    let bound = super::deformer(m, &nets, None);
+    // The binding is of the projection pose: the rig and the cage under it
+    // change frames, not the binding (they are reported on their own).
+    let bound = super::deformer(m, &nets, None, None);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
         Ok(d) => BindingReport {
@@ -922,6 +1016,9 @@ fn text(r: &Report) -> String {
         let _ = writeln!(s, "  curvenets: {}", m.curvenets.join(", "));
         if let Some(r) = &m.rig {
             rig_text(&mut s, r);
+        }
+        if let Some(c) = &m.cage {
+            cage_text(&mut s, c);
         }
         if let Some(b) = &m.binding {
             binding_text(&mut s, b);

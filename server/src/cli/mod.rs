@@ -57,6 +57,7 @@ pub fn deformer(
     mesh: &curvenet_schema::MeshData,
     nets: &[curvenet_schema::CurvenetData],
     skinning: Option<curvenet_core::deformer::Rig>,
+    cage: Option<&curvenet_schema::CageData>,
 ) -> CliResult<curvenet_core::Deformer> {
     use curvenet_core::blend_shapes::BlendShape;
     use curvenet_core::{CurvenetInput, Deformer, DeformerInput};
@@ -72,7 +73,8 @@ pub fn deformer(
         })
         .collect::<CliResult<Vec<_>>>()?;
     let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let input = DeformerInput { blend_shapes, skinning, ..curvenet_schema::deformer_input(mesh, &curvenets) };
+    let cage = cage.map(|c| curvenet_core::deformer::CageInput { points: &c.rest_points, triangles: &c.triangles });
+    let input = DeformerInput { blend_shapes, skinning, cage, ..curvenet_schema::deformer_input(mesh, &curvenets) };
     Deformer::new(&input).map_err(|e| match e {
         curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
             context: format!("{} (bound to {})", nets[curvenet as usize].path, mesh.path),

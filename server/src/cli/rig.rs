@@ -10,12 +10,12 @@
 
 use curvenet_core::deformer::Rig;
 use curvenet_core::skinning::{
-    self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, Skin, SplineSkinning,
-    SplineSkinningOptions, SurfaceWeights,
+    self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, Skin, SkinningMethod,
+    SplineSkinning, SplineSkinningOptions, SurfaceWeights,
 };
 
 use curvenet_core::{ClosestPointBvh, PolyMesh};
-use curvenet_schema::usd::{CurvenetSkinning, SkinRig, Stage};
+use curvenet_schema::usd::{CurvenetSkinning, CurvenetSkinningMethod, SkinRig, Stage};
 use curvenet_schema::{CurvenetData, MeshData};
 
 use super::{CliError, CliResult};
@@ -127,10 +127,19 @@ impl MeshRig {
             net_rigs.push(net_rig);
         }
         let spline_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let skin = Skin::new(influences, rig.geom_bind_transform, rig.method).map_err(core(mesh.path.clone()))?;
+        // `curvenet:skinningMethod` (schema/README.md) overrides UsdSkel's token:
+        // it can name centres of rotation, which UsdSkel's tokens cannot.
+        let method = match rig.curvenet_method {
+            None => rig.method,
+            Some(CurvenetSkinningMethod::ClassicLinear) => SkinningMethod::ClassicLinear,
+            Some(CurvenetSkinningMethod::DualQuaternion) => SkinningMethod::DualQuaternion,
+            Some(CurvenetSkinningMethod::CentersOfRotation) => SkinningMethod::CentersOfRotation,
+        };
+        let skin = Skin::new(influences, rig.geom_bind_transform, method).map_err(core(mesh.path.clone()))?;
         Ok(Some(Self {
+            // The skeleton goes with the rig: a cage coupled with it relocates the joints (SkelUp).
+            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible, skeleton: Some(skeleton.clone()) },
             joints: JointReader { rig, skeleton },
-            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible, skeleton: None },
             unnormalized,
             nets: net_rigs,
             spline_ms,
