@@ -223,7 +223,8 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
         Ok(FrameRequest {
             posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]),
             ..FrameRequest::default()
-        })
+        }
+        .into())
     });
     let index = state.open_in_viewer(ViewerStage::new(
         "shots/wave.usda".into(),
@@ -280,7 +281,7 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
 }
 
 fn no_frames() -> FrameSource {
-    Arc::new(|_| Ok(FrameRequest::default()))
+    Arc::new(|_| Ok(FrameRequest::default().into()))
 }
 
 fn open(state: &AppState, req: BindingRequest) -> usize {
