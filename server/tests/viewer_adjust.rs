@@ -82,6 +82,11 @@ fn floats(v: &Value) -> Vec<f64> {
     v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
 }
 
+/// The viewer's points: f32 values written as their shortest decimals, read back as those f32.
+fn points(v: &Value) -> Vec<f64> {
+    floats(v).into_iter().map(|x| x as f32 as f64).collect()
+}
+
 fn max_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
@@ -126,7 +131,7 @@ async fn adjustments_of_the_stage_and_the_user_bake_to_what_the_viewer_shows() {
     assert!(prims.contains(&"/Hand/Curvenet/IndexPipDorsal"), "{prims:?}");
     let orientations = frame["knot_orientations"][0].as_object().unwrap();
     assert_eq!(orientations.len(), knots.len(), "every knot has its orientation");
-    let shown = floats(&frame["points"]);
+    let shown = points(&frame["points"]);
     let baked = bake(&common::repo().join(SHOT), 6.0, &dir, "shot.usda");
     let d = max_diff(&shown, &baked);
     eprintln!("stage frame 6: viewer vs bake, max |Δ| = {d:e} (diagonal {diagonal})");
@@ -146,7 +151,7 @@ async fn adjustments_of_the_stage_and_the_user_bake_to_what_the_viewer_shows() {
         post(&client, &format!("{base}/v1/viewer/stages/0/frames/{k}"), &json!({"adjustments": adjustments})).await;
     assert_eq!(status, 200, "{text}");
     let adjusted: Value = serde_json::from_str(&text).unwrap();
-    let moved = floats(&adjusted["points"]);
+    let moved = points(&adjusted["points"]);
     let change = max_diff(&moved, &shown);
     assert!(change > 1e-3 * diagonal, "the user's adjustments move the surface (by {change})");
     let sources: Vec<(&str, u64)> = adjusted["adjustments"]
