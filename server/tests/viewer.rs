@@ -76,7 +76,7 @@ fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_is_self_contained_and_open_without_the_token() {
     let app = app(state(Some("secret")));
-    let modules = ["main", "api", "math", "camera", "gl", "highlight"];
+    let modules = ["main", "api", "math", "camera", "gl", "highlight", "adjust"];
     let mut assets = vec![("/viewer".to_string(), "text/html"), ("/viewer/viewer.css".to_string(), "text/css")];
     assets.extend(modules.iter().map(|m| (format!("/viewer/js/{m}.js"), "text/javascript")));
     for (path, kind) in &assets {
@@ -273,11 +273,14 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
     for path in [
         "/v1/viewer/stages",
         "/v1/viewer/stages/{index}/frames/{k}",
+        "/v1/viewer/stages/{index}/export",
         "/v1/bindings/{id}/viewer-data",
         "/v1/bindings/{id}/viewer-frame",
     ] {
         assert!(doc["paths"].get(path).is_some(), "{path} missing");
     }
+    let frames = &doc["paths"]["/v1/viewer/stages/{index}/frames/{k}"];
+    assert!(frames.get("get").is_some() && frames.get("post").is_some(), "{frames}");
 }
 
 fn no_frames() -> FrameSource {
