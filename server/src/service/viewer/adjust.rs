@@ -235,3 +235,36 @@ pub fn export_layer(
         adjustments,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The quaternion of Euler angles is core's rotation of those angles, and
+    /// the panel's Euler angles of a quaternion turn back into it.
+    #[test]
+    fn euler_angles_and_quaternions_agree_with_core() {
+        for e in [[0.0, 0.0, 25.0], [10.0, -35.0, 70.0], [-120.0, 15.0, 5.0], [0.0, 0.0, 0.0]] {
+            let q = euler_to_quat(e);
+            let (a, b) = (Rotate::EulerXyz(e).matrix(), Rotate::Quaternion(q).matrix());
+            let d = a.iter().flatten().zip(b.iter().flatten()).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+            assert!(d < 1e-12, "{e:?}: {d}");
+            let back = quat_to_euler(q);
+            let c = Rotate::EulerXyz(back).matrix();
+            let d = a.iter().flatten().zip(c.iter().flatten()).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+            assert!(d < 1e-12, "{e:?} -> {back:?}: {d}");
+        }
+        assert_eq!(euler_to_quat([0.0; 3]), [1.0, 0.0, 0.0, 0.0]);
+    }
+
+    /// The user's adjustment replaces the stage's of the same knot only.
+    #[test]
+    fn the_users_adjustment_replaces_the_stages_of_its_knot() {
+        let stage = vec![Adjustment::new(0, 3).with_translate([1.0, 0.0, 0.0]), Adjustment::new(0, 7)];
+        let user = [Adjustment::new(0, 3).with_translate([0.0, 2.0, 0.0])];
+        let out = compose(stage, &user);
+        assert_eq!(out.len(), 2);
+        assert_eq!((out[0].knot, out[1].knot), (7, 3));
+        assert_eq!(out[1].translate, [0.0, 2.0, 0.0]);
+    }
+}
