@@ -76,7 +76,7 @@ fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_is_self_contained_and_open_without_the_token() {
     let app = app(state(Some("secret")));
-    let modules = ["main", "api", "math", "camera", "gl", "highlight"];
+    let modules = ["main", "api", "math", "camera", "gl", "highlight", "adjust"];
     let mut assets = vec![("/viewer".to_string(), "text/html"), ("/viewer/viewer.css".to_string(), "text/css")];
     assets.extend(modules.iter().map(|m| (format!("/viewer/js/{m}.js"), "text/javascript")));
     for (path, kind) in &assets {
@@ -223,7 +223,8 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
         Ok(FrameRequest {
             posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]),
             ..FrameRequest::default()
-        })
+        }
+        .into())
     });
     let index = state.open_in_viewer(ViewerStage::new(
         "shots/wave.usda".into(),
@@ -272,15 +273,18 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
     for path in [
         "/v1/viewer/stages",
         "/v1/viewer/stages/{index}/frames/{k}",
+        "/v1/viewer/stages/{index}/export",
         "/v1/bindings/{id}/viewer-data",
         "/v1/bindings/{id}/viewer-frame",
     ] {
         assert!(doc["paths"].get(path).is_some(), "{path} missing");
     }
+    let frames = &doc["paths"]["/v1/viewer/stages/{index}/frames/{k}"];
+    assert!(frames.get("get").is_some() && frames.get("post").is_some(), "{frames}");
 }
 
 fn no_frames() -> FrameSource {
-    Arc::new(|_| Ok(FrameRequest::default()))
+    Arc::new(|_| Ok(FrameRequest::default().into()))
 }
 
 fn open(state: &AppState, req: BindingRequest) -> usize {

@@ -653,3 +653,130 @@ def test_detour_and_touch_warnings_highlight_their_segments(problem_server, tool
     assert np.linalg.norm(np.array(target) - np.array(at)) < 0.05, (target, at)
     assert radius < 0.5 * 0.5 * np.sqrt(2 + 0.3 ** 2), f"the camera still frames the whole plate (radius {radius})"
     assert not page.errors(), page.errors()
+
+
+# ------------------------------------------------------------------ Curvenet Adjustments
+
+ADJUSTED = ROOT / "fixtures" / "shots" / "hand_adjusted" / "shot.usda"
+
+
+@pytest.fixture(scope="module")
+def adjusted_server():
+    yield from _serve(ADJUSTED)
+
+
+def _vertex_normal(points, triangles, vertex):
+    """The area-weighted normal of `vertex` over the triangles around it."""
+    around = triangles[(triangles == vertex).any(axis=1)]
+    a, b, c = (points[around[:, k]] for k in range(3))
+    n = np.cross(b - a, c - a).sum(axis=0)
+    return n / np.linalg.norm(n)
+
+
+def test_a_knot_picked_by_a_click_and_adjusted_bakes_to_the_points_shown(adjusted_server, tools, tmp_path):
+    """On the adjusted shot (four CurvenetAdjustment prims keyed at frames 1, 6
+    and 12): the knot frames are drawn; a click on a knot picks it; moving it
+    1.5% of the diagonal along the surface normal (expressed in the knot's
+    frame) and turning it 20° about its z changes the picture; the exported
+    layer, baked by `curvenet bake` and read with usd-core, has the points the
+    viewer drew. Tolerance 1e-5 of the diagonal: both sides are f32 roundings
+    of one f64 solve of the same adjustments (the viewer rounds its values to
+    the layer's types before solving), so only the solve's summation order
+    could differ; measured 0."""
+    from pxr import Usd
+
+    page = Page(tools)
+    stage_info = _get(f"{adjusted_server}/v1/viewer/stages")["stages"][0]
+    k = stage_info["times"].index(6.0)
+    _open(page, f"{adjusted_server}/viewer", "ready")
+    _set_frame(page, k)
+    binding = _get(f"{adjusted_server}/v1/viewer/stages/0")["binding"]
+    data = _get(f"{adjusted_server}/v1/bindings/{binding['binding_id']}/viewer-data")
+    diagonal = data["diagonal"]
+    knots = data["curvenets"][0]["knots"]
+    frame = page.eval("(() => { const f = window.curvenetViewer.view.frames.get(window.curvenetViewer.view.frame);"
+                      " return { orientations: f.knot_orientations, adjustments: f.adjustments }; })()")
+    assert set(frame["orientations"][0]) == {str(p) for p in knots}, "every knot has its frame"
+    assert len(frame["adjustments"]) == 4, "the stage's four adjustments apply"
+    _, before = page.screenshot()
+    # The knot axes are drawn: pure red, green and blue strokes.
+    r, g, b = (before[:, :, c].astype(int) for c in range(3))
+    assert ((g > 180) & (r < 120) & (b < 140)).sum() > 30, "no green knot axes"
+
+    # A real click on a knot that stands apart on screen (no other knot within
+    # twice the pick radius) and is not the stage's: it is picked.
+    screen = page.eval("(() => { const v = window.curvenetViewer;"
+                       f" return {json.dumps(knots)}.map(p => v.knotScreenPosition(0, p)); }})()")
+    stage_knots = {a["knot"] for a in frame["adjustments"]}
+    chosen = None
+    for p, s in zip(knots, screen):
+        if p in stage_knots or s is None or not (40 < s["x"] < WIDTH - PANEL - 40 and 40 < s["y"] < HEIGHT - 40):
+            continue
+        others = [o for q, o in zip(knots, screen) if q != p and o is not None]
+        if all(np.hypot(o["x"] - s["x"], o["y"] - s["y"]) > 24 for o in others):
+            chosen = (p, s)
+            break
+    assert chosen, "no knot stands apart on screen"
+    knot, at = chosen
+    x, y = round(at["x"]), round(at["y"])
+    page.call("Input.dispatchMouseEvent", {"type": "mouseMoved", "x": x, "y": y})
+    for kind in ("mousePressed", "mouseReleased"):
+        page.call("Input.dispatchMouseEvent", {"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1})
+    page.wait_for("document.body.dataset.knot", f"0:{knot}", timeout=30)
+    assert not page.eval("document.getElementById('adjust-fields').hidden"), "the panel shows the knot's fields"
+
+    # Translate along the surface normal at the knot, in the knot's frame.
+    points = np.array(page.eval("window.curvenetViewer.lastFramePoints()")).reshape(-1, 3)
+    triangles = np.array(data["mesh"]["triangles"]).reshape(-1, 3)
+    sample = np.array(page.eval(f"Array.from(window.curvenetViewer.view.frames.get({k}).curvenets[0].samples)"
+                                f".slice({3 * knots.index(knot)}, {3 * knots.index(knot) + 3})"))
+    nearest = int(np.argmin(np.linalg.norm(points - sample, axis=1)))
+    normal = _vertex_normal(points, triangles, nearest)
+    frame_of = np.array(frame["orientations"][0][str(knot)]).reshape(3, 3)  # columns: the knot's axes
+    translate = (frame_of.T @ normal * 0.015 * diagonal).tolist()
+    adjusted = {"curvenet": 0, "knot": knot, "translate": translate, "rotate": [0.0, 0.0, 20.0],
+                "scale": [1.0, 1.0, 1.0], "attach_tangents": True}
+    count = int(page.eval("Number(document.body.dataset.adjusted || 0)"))
+    page.eval(f"window.curvenetViewer.setAdjustment({json.dumps(adjusted)}).then(() => true)")
+    assert int(page.eval("Number(document.body.dataset.adjusted)")) == count + 1
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    _, after = page.screenshot()
+    assert _changed(before, after) > 0.001, f"the adjustment changed only {_changed(before, after):.3%} of the pixels"
+    shown = np.array(page.eval("window.curvenetViewer.lastFramePoints()")).reshape(-1, 3)
+    moved = np.linalg.norm(shown - points, axis=1).max()
+    assert moved > 0.003 * diagonal, f"the surface moved only {moved / diagonal:.2%} of the diagonal"
+    # The fields show what was set (translate in model units).
+    field = float(page.eval("document.getElementById('adjust-rotate-z').value"))
+    assert field == 20.0, field
+    # The panel's own fields work too (no keyboard): scale x typed into its number field.
+    page.eval("(() => { const f = document.getElementById('adjust-scale-x'); f.value = '1.5';"
+              " f.dispatchEvent(new Event('input')); })()")
+    page.wait_for("Number(document.body.dataset.adjusted)", count + 2, timeout=60)
+    spec = page.eval("window.curvenetViewer.adjustments()")
+    assert len(spec) == 1 and spec[0]["scale"] == [1.5, 1, 1] and spec[0]["rotate"] == [0, 0, 20], spec
+    assert np.allclose(spec[0]["translate"], translate, rtol=1e-6, atol=1e-9 * diagonal), (spec, translate)
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+    scaled = np.array(page.eval("window.curvenetViewer.lastFramePoints()")).reshape(-1, 3)
+    assert np.abs(scaled - shown).max() > 0, "scaling the knot's tangents changed nothing"
+    shown = scaled
+
+    # The export, baked and read back with usd-core, is what the viewer drew.
+    layer_text = page.eval("window.curvenetViewer.exportLayer()")
+    layer = tmp_path / "adjusted.usda"
+    layer.write_text(layer_text)
+    out = tmp_path / "baked.usda"
+    t = stage_info["times"][k]
+    subprocess.run([str(_binary()), "bake", str(layer), "-o", str(out), "--frames", f"{int(t)}-{int(t)}"],
+                   check=True, capture_output=True)
+    baked_stage = Usd.Stage.Open(str(out))  # kept: a prim of a collected stage expires
+    baked = np.array(baked_stage.GetPrimAtPath("/Hand/Mesh").GetAttribute("points").Get(t))
+    worst = np.abs(baked - shown).max()
+    print(f"viewer vs bake of the export: max |Δ| = {worst:.3e} ({worst / diagonal:.2e} of the diagonal)")
+    assert worst <= 1e-5 * diagonal, f"the bake of the export is {worst / diagonal:.2e} of the diagonal from the viewer"
+    assert np.abs(baked - points).max() > 0.003 * diagonal, "the bake does not carry the adjustment"
+    # The layer is an over on the shot: a new prim for the knot, the shot sublayered.
+    composed = Usd.Stage.Open(str(layer))
+    prim = composed.GetPrimAtPath(f"/Hand/Curvenet/Knot_{knot}")
+    assert prim and prim.GetTypeName() == "CurvenetAdjustment"
+    assert prim.GetAttribute("curvenet:knot").Get() == knot
+    assert not page.errors(), page.errors()

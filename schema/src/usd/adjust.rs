@@ -13,14 +13,14 @@ type Result<T> = std::result::Result<T, UsdError>;
 
 /// The prim type of an adjustment (typed by convention, like the curvenet).
 pub const ADJUSTMENT_TYPE: &str = "CurvenetAdjustment";
-const KNOT: &str = "curvenet:knot";
-const ATTACH: &str = "curvenet:attachTangents";
-const TANGENT_TRANSLATES: &str = "curvenet:tangentTranslates";
-const TRANSLATE: &str = "xformOp:translate";
-const ROTATE_XYZ: &str = "xformOp:rotateXYZ";
-const ORIENT: &str = "xformOp:orient";
-const SCALE: &str = "xformOp:scale";
-const OP_ORDER: &str = "xformOpOrder";
+pub const KNOT: &str = "curvenet:knot";
+pub const ATTACH: &str = "curvenet:attachTangents";
+pub const TANGENT_TRANSLATES: &str = "curvenet:tangentTranslates";
+pub const TRANSLATE: &str = "xformOp:translate";
+pub const ROTATE_XYZ: &str = "xformOp:rotateXYZ";
+pub const ORIENT: &str = "xformOp:orient";
+pub const SCALE: &str = "xformOp:scale";
+pub const OP_ORDER: &str = "xformOpOrder";
 
 impl Stage {
     /// The `CurvenetAdjustment` children of `curvenet`'s prim, in the

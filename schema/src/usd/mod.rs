@@ -15,6 +15,7 @@
 //! ```
 
 mod adjust;
+mod adjust_layer;
 mod cage;
 mod confine;
 mod curvenet_layer;
@@ -28,7 +29,12 @@ pub use write::{
     encode_points_overrides, read_points_overrides, write_points_overrides,
 };
 
+/// The attribute names of a `CurvenetAdjustment` prim.
+pub mod adjustment_attributes {
+    pub use super::adjust::{ATTACH, KNOT, OP_ORDER, ORIENT, ROTATE_XYZ, SCALE, TANGENT_TRANSLATES, TRANSLATE};
+}
 pub use adjust::ADJUSTMENT_TYPE;
+pub use adjust_layer::{AdjustmentLayer, AdjustmentOver, AdjustmentRotate, encode_adjustment_layer};
 pub use cage::{CAGE_REL, POSED_CAGE_OFFSETS};
 pub use curvenet_layer::{CurvenetLayer, encode_curvenet_layer, write_curvenet_layer};
 pub use error::UsdError;

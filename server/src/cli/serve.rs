@@ -12,8 +12,10 @@ use std::time::Duration;
 use clap::Parser as _;
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
-use curvenet_schema::{CurvenetData, MeshData};
-use curvenet_server::{AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, ViewerStage};
+use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
+use curvenet_server::{
+    AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, StageAdjustment, StageFrame, ViewerStage,
+};
 
 use super::{CliError, CliResult};
 
@@ -302,15 +304,17 @@ fn baker() -> Baker {
 
 /// A frame request to the thread that owns an opened stage: (mesh, frame,
 /// where to answer).
-type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<FrameRequest, String>>);
+type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<StageFrame, String>>);
 
 /// Opens `path` for the viewer: one [`ViewerStage`] per curvenet-deformed
 /// mesh, with the frames `curvenet bake` would bake (a stage with no time
-/// range and no time samples has one frame, its default values). The USD
-/// stage is not `Send`, so one thread owns it and reads frames on request.
-/// Fails, naming the stage and prim, when the stage breaks the contract.
+/// range and no time samples has one frame, its default values) and, as the
+/// bake reads them, each curvenet's `CurvenetAdjustment` prims, applied to
+/// every frame. The USD stage is not `Send`, so one thread owns it and reads
+/// frames on request. Fails, naming the stage and prim, when the stage
+/// breaks the contract.
 pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
-    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String);
+    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String, Vec<Vec<StageAdjustment>>);
     let (setup_tx, setup_rx) = std::sync::mpsc::channel::<CliResult<Opened>>();
     let (query_tx, query_rx) = std::sync::mpsc::channel::<FrameQuery>();
     let owned = path.to_path_buf();
@@ -326,7 +330,9 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                     });
                 let times = if animated { super::bake::frames(&stage, None, &inputs)? } else { vec![0.0] };
                 let name = stage.path().to_string();
-                Ok((stage, (inputs, times, name)))
+                let adjustments =
+                    inputs.iter().map(|(_, nets, _)| stage_adjustments(&stage, nets)).collect::<CliResult<Vec<_>>>()?;
+                Ok((stage, (inputs, times, name, adjustments)))
             })();
             let (stage, opened) = match opened {
                 Ok(x) => x,
@@ -337,17 +343,27 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             };
             let inputs = opened.0.clone();
             let times = opened.1.clone();
+            // Per mesh, per curvenet (binding order): its adjustment prims.
+            let per_curvenet: Vec<Vec<Vec<AdjustmentData>>> = inputs
+                .iter()
+                .enumerate()
+                .map(|(m, (_, nets, _))| {
+                    (0..nets.len())
+                        .map(|k| opened.3[m].iter().filter(|a| a.curvenet == k).map(|a| a.data.clone()).collect())
+                        .collect()
+                })
+                .collect();
             if setup_tx.send(Ok(opened)).is_err() {
                 return;
             }
             // Serve frame reads until every ViewerStage (every sender) is gone.
             for (m, k, answer) in query_rx {
                 let (mesh, nets, reads_rest) = &inputs[m];
-                let _ = answer.send(read_frame(&stage, mesh, nets, *reads_rest, times[k]));
+                let _ = answer.send(read_frame(&stage, mesh, nets, *reads_rest, &per_curvenet[m], times[k]));
             }
         })
         .map_err(|e| CliError::Io { context: "starting the stage reader thread".into(), source: e })?;
-    let (inputs, times, name) = setup_rx.recv().map_err(|_| {
+    let (inputs, times, name, mut adjustments) = setup_rx.recv().map_err(|_| {
         CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display()))
     })??;
     let query_tx = std::sync::Mutex::new(query_tx);
@@ -379,20 +395,45 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 BindingRequest::from_stage(&mesh, &nets),
                 frame,
             )
+            .with_adjustments(std::mem::take(&mut adjustments[m]))
         })
         .collect())
 }
 
+/// The `CurvenetAdjustment` prims of a mesh's curvenets (`nets`, binding
+/// order), as the bake reads them, each with its values at every time code
+/// one of its attributes has a sample at (what an export keys among).
+fn stage_adjustments(stage: &Stage, nets: &[CurvenetData]) -> CliResult<Vec<StageAdjustment>> {
+    let mut out = Vec::new();
+    for (k, net) in nets.iter().enumerate() {
+        for data in stage.curvenet_adjustments(net)? {
+            let mut times: Vec<f64> = data.attributes.iter().flat_map(|(_, t)| t.iter().copied()).collect();
+            times.sort_by(f64::total_cmp);
+            times.dedup();
+            let mut alone = vec![Vec::new(); nets.len()];
+            alone[k].push(data.clone());
+            let keys = times
+                .into_iter()
+                .map(|t| Ok((t, stage.adjustments_at(&alone, Some(t))?.remove(0))))
+                .collect::<CliResult<Vec<_>>>()?;
+            out.push(StageAdjustment { curvenet: k, data, keys });
+        }
+    }
+    Ok(out)
+}
+
 /// One mesh's frame at `time`, as the bake reads it: the posed pools (none
 /// for a curvenet without time samples), the rest pose when the mesh's
-/// points are animated or differ from the projection pose, the blend-shape weights.
+/// points are animated or differ from the projection pose, the blend-shape
+/// weights, the curvenets' adjustments (`adjustments[k]`: curvenet `k`'s prims).
 fn read_frame(
     stage: &Stage,
     mesh: &MeshData,
     nets: &[CurvenetData],
     reads_rest: bool,
+    adjustments: &[Vec<AdjustmentData>],
     time: f64,
-) -> Result<FrameRequest, String> {
+) -> Result<StageFrame, String> {
     let posed = nets
         .iter()
         .map(|n| stage.posed_pool(n, Some(time)))
@@ -404,5 +445,9 @@ fn read_frame(
     } else {
         Some(stage.blend_shape_weights(mesh, Some(time)).map_err(|e| e.to_string())?)
     };
-    Ok(FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() })
+    let adjustments = stage.adjustments_at(adjustments, Some(time)).map_err(|e| e.to_string())?;
+    Ok(StageFrame {
+        request: FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() },
+        adjustments,
+    })
 }

@@ -380,7 +380,7 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
 /// An error about adjustment `i` also names its curvenet (core's
 /// out-of-range knot names only the adjustment and the control point) and,
 /// when core's message does not, the adjustment's place in the request.
-fn name_adjustment(e: ServiceError, adjustments: &[Adjustment]) -> ServiceError {
+pub(crate) fn name_adjustment(e: ServiceError, adjustments: &[Adjustment]) -> ServiceError {
     let Some(i) = e.details.as_ref().and_then(|d| d.adjustment) else { return e };
     let Some(a) = adjustments.get(i) else { return e };
     let curvenet = a.curvenet as u32;

@@ -63,4 +63,4 @@ pub use state::{
     AppState, Config, DEFAULT_BODY_LIMIT, DEFAULT_CACHE_BYTES, DEFAULT_DRAIN_TIMEOUT, DEFAULT_MAX_BATCH_BYTES,
     DEFAULT_MAX_SOLVES, DEFAULT_QUEUE_TIMEOUT,
 };
-pub use viewer::{FrameSource, ViewerStage};
+pub use viewer::{FrameSource, StageAdjustment, StageFrame, ViewerStage};

@@ -60,6 +60,8 @@ impl Modify for BearerAuth {
         viewer::stages,
         viewer::stage,
         viewer::stage_frame,
+        viewer::stage_frame_adjusted,
+        viewer::stage_export,
         viewer::stage_refusal,
         viewer::viewer_data,
         viewer::viewer_frame,
@@ -71,7 +73,8 @@ impl Modify for BearerAuth {
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
         viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
-        viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight,
+        viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight, viewer::ViewerAdjustment,
+        viewer::ViewerAdjustRequest, viewer::ViewerExportRequest,
     )),
     modifiers(&BearerAuth),
     tags(

@@ -6,7 +6,9 @@
 //! GET  /viewer, /viewer/js/{module}.js, /viewer/viewer.css the page and its ES modules (no token: they hold no data)
 //! GET  /v1/viewer/stages                                  stages opened with `serve --open-stage` / `inspect --serve`
 //! GET  /v1/viewer/stages/{index}                          binds the stage's mesh (through the cache): its BindingResponse
-//! GET  /v1/viewer/stages/{index}/frames/{k}               frame k of the stage, solved: a ViewerFrame
+//! GET  /v1/viewer/stages/{index}/frames/{k}               frame k of the stage (with its Curvenet Adjustments), solved: a ViewerFrame
+//! POST /v1/viewer/stages/{index}/frames/{k}               the same with the user's adjustments composed on top (ViewerAdjustRequest)
+//! POST /v1/viewer/stages/{index}/export                   the user's adjustments as a USD layer over the stage (ViewerExportRequest → .usda)
 //! GET  /v1/viewer/stages/{index}/refusal                  a stage whose binding is refused: mesh, curvenets, the element named (a ViewerRefusal)
 //! GET  /v1/bindings/{id}/viewer-data                      the binding's geometry: a ViewerData
 //! POST /v1/bindings/{id}/viewer-frame                     a FrameRequest, solved: a ViewerFrame
@@ -24,6 +26,11 @@
 //! refusals carry [`Highlight`]s: the element a core warning or error names
 //! (segments, a spline, a sample, faces, vertices), with its geometry and a
 //! box to frame (see `highlight.rs`).
+//!
+//! A stage's frames carry its `CurvenetAdjustment` prims, read as `curvenet
+//! bake` reads them; the user's adjustments replace the stage's of the same
+//! knots, and export as a layer that bakes to what the viewer showed (see
+//! `adjust.rs` for the decisions).
 
 use std::sync::{Arc, Mutex};
 
@@ -32,6 +39,7 @@ use axum::Json;
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
+use curvenet_core::adjust::Adjustment;
 use curvenet_core::binding::Surface;
 use curvenet_core::binding::{CROSSING, MESH_VERTEX, SAMPLE};
 use curvenet_core::curvenet::ScaledFrame;
@@ -40,11 +48,16 @@ use curvenet_core::{
     BindOptions, Binding, Curvenet, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Error,
     MeshInput, PolyMesh, SamplingOptions,
 };
-use curvenet_schema::wire::{BindingRequest, BindingResponse, ErrorBody, FrameRequest, Warning};
-use serde::Serialize;
+use curvenet_schema::usd::{LayerFormat, encode_adjustment_layer};
+use curvenet_schema::wire::{AdjustmentSpec, BindingRequest, BindingResponse, ErrorBody, FrameRequest, Warning};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use utoipa::ToSchema;
 
+mod adjust;
 mod highlight;
+
+pub use adjust::StageAdjustment;
 
 pub use highlight::Highlight;
 use highlight::{NetGeometry, Scene};
@@ -62,13 +75,14 @@ const VIEWER_CSS: &str = include_str!("viewer/viewer.css");
 
 /// The script's ES modules (`/viewer/js/{name}`), the entry point first;
 /// they import one another by relative paths (`./math.js`).
-pub const MODULES: [(&str, &str); 6] = [
+pub const MODULES: [(&str, &str); 7] = [
     ("main.js", include_str!("viewer/js/main.js")),
     ("api.js", include_str!("viewer/js/api.js")),
     ("math.js", include_str!("viewer/js/math.js")),
     ("camera.js", include_str!("viewer/js/camera.js")),
     ("gl.js", include_str!("viewer/js/gl.js")),
     ("highlight.js", include_str!("viewer/js/highlight.js")),
+    ("adjust.js", include_str!("viewer/js/adjust.js")),
 ];
 
 /// Everything the page may load: itself. No remote scripts, styles, fonts or images.
@@ -80,9 +94,25 @@ const CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self'; img-
 pub const FAR_SAMPLE_WARNING: f64 = 0.5 * curvenet_core::binding::cut::DEFAULT_MAX_PROJECTION_DISTANCE;
 
 /// Reads frame `k` of a stage opened in the viewer (the stage's k-th time
-/// code) as a [`FrameRequest`]: posed pools, the rest pose, blend-shape
-/// weights. A reader that fails names the frame and the prim.
-pub type FrameSource = Arc<dyn Fn(usize) -> Result<FrameRequest, String> + Send + Sync>;
+/// code): posed pools, the rest pose, blend-shape weights and the stage's
+/// Curvenet Adjustments at that time. A reader that fails names the frame
+/// and the prim.
+pub type FrameSource = Arc<dyn Fn(usize) -> Result<StageFrame, String> + Send + Sync>;
+
+/// A frame of a stage opened in the viewer, as read from the stage.
+#[derive(Debug, Clone, Default)]
+pub struct StageFrame {
+    pub request: FrameRequest,
+    /// The stage's Curvenet Adjustments at this frame (core's: a rotate
+    /// may be a quaternion), applied after the request's own.
+    pub adjustments: Vec<Adjustment>,
+}
+
+impl From<FrameRequest> for StageFrame {
+    fn from(request: FrameRequest) -> Self {
+        Self { request, adjustments: Vec::new() }
+    }
+}
 
 /// A deformed mesh of a stage opened in the viewer (`curvenet serve
 /// --open-stage STAGE`): what to bind, and how to read each frame.
@@ -99,6 +129,8 @@ pub struct ViewerStage {
     pub binding: BindingRequest,
     /// Frame `k` (an index into `times`).
     pub frame: FrameSource,
+    /// The stage's `CurvenetAdjustment` prims (what an export keys among).
+    pub adjustments: Vec<StageAdjustment>,
     /// The binding id once bound (to skip re-hashing the request per frame).
     bound: Mutex<Option<String>>,
 }
@@ -112,7 +144,14 @@ impl ViewerStage {
         binding: BindingRequest,
         frame: FrameSource,
     ) -> Self {
-        Self { stage, mesh, curvenets, times, binding, frame, bound: Mutex::new(None) }
+        Self { stage, mesh, curvenets, times, binding, frame, adjustments: Vec::new(), bound: Mutex::new(None) }
+    }
+
+    /// The stage's `CurvenetAdjustment` prims (their values per frame come
+    /// with the frames).
+    pub fn with_adjustments(mut self, adjustments: Vec<StageAdjustment>) -> Self {
+        self.adjustments = adjustments;
+        self
     }
 }
 
@@ -242,6 +281,9 @@ pub struct CurvenetView {
     /// Scaled frames, 18 floats per segment: for the plus then the minus
     /// side, `t·l`, `b·w`, `n·h` (paper Fig. 5).
     pub frames: Vec<f32>,
+    /// The knots (spline endpoints) by pool index; knot `i` is sample `i`
+    /// (in every pose's `samples`).
+    pub knots: Vec<u32>,
 }
 
 /// `GET /v1/viewer/stages/{index}/refusal`: a stage whose binding is
@@ -298,6 +340,47 @@ pub struct ViewerFrame {
     /// tracked to it, as the solve sees them.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rest: Option<RestView>,
+    /// The Curvenet Adjustments the solve applied (a stage frame: the
+    /// stage's, with the user's in place of the stage's of the same knot),
+    /// as values in the layer's types; a quaternion rotate is given as Euler
+    /// angles.
+    pub adjustments: Vec<ViewerAdjustment>,
+    /// Per curvenet, each knot's orientation (pool index → row-major 3×3,
+    /// its columns the knot frame's axes), before the adjustments; when the
+    /// frame asked for `orientations` (stage frames always do).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub knot_orientations: Option<Vec<BTreeMap<String, [f64; 9]>>>,
+}
+
+/// An adjustment a viewer frame applied.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ViewerAdjustment {
+    #[serde(flatten)]
+    pub adjustment: AdjustmentSpec,
+    /// The stage's `CurvenetAdjustment` prim of this knot, when it has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prim: Option<String>,
+    /// `stage` (the stage's own values) or `user` (the request's).
+    pub source: String,
+}
+
+/// `POST /v1/viewer/stages/{index}/frames/{k}`: the user's adjustments.
+#[derive(Debug, Clone, Default, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ViewerAdjustRequest {
+    /// Each replaces the stage's adjustment of its knot at this frame.
+    #[serde(default)]
+    pub adjustments: Vec<AdjustmentSpec>,
+}
+
+/// `POST /v1/viewer/stages/{index}/export`.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ViewerExportRequest {
+    /// The frame the adjustments were made at (an index into the stage's times).
+    pub frame: usize,
+    /// The user's adjustments, as posted for the frame.
+    pub adjustments: Vec<AdjustmentSpec>,
 }
 
 /// A frame's own rest pose.
@@ -435,7 +518,8 @@ pub(crate) async fn stage_refusal(
     Ok(([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], bytes).into_response())
 }
 
-/// Solves frame `k` of a stage opened in the viewer.
+/// Solves frame `k` of a stage opened in the viewer, with the stage's
+/// Curvenet Adjustments and the knots' orientations.
 #[utoipa::path(get, path = "/v1/viewer/stages/{index}/frames/{k}", tag = "viewer", security(("bearer" = [])),
     params(
         ("index" = usize, Path, description = "The stage's index in /v1/viewer/stages"),
@@ -451,26 +535,155 @@ pub(crate) async fn stage_frame(
     State(state): State<AppState>,
     Params((index, k)): Params<(usize, usize)>,
 ) -> Result<Json<ViewerFrame>, ServiceError> {
+    Ok(Json(solve_stage_frame(&state, index, k, &[]).await?))
+}
+
+/// Solves frame `k` of a stage with the user's Curvenet Adjustments: each
+/// replaces the stage's adjustment of its knot (the values rounded to the
+/// types the export layer stores, so that the export bakes to these points).
+#[utoipa::path(post, path = "/v1/viewer/stages/{index}/frames/{k}", tag = "viewer", security(("bearer" = [])),
+    params(
+        ("index" = usize, Path, description = "The stage's index in /v1/viewer/stages"),
+        ("k" = usize, Path, description = "The frame: an index into the stage's times"),
+    ),
+    request_body = ViewerAdjustRequest,
+    responses(
+        (status = 200, description = "The solved frame", body = ViewerFrame),
+        (status = 400, description = "malformed_json", body = ErrorBody),
+        (status = 404, description = "not_found: no such stage or frame", body = ErrorBody),
+        (status = 422, description = "The frame is invalid, or an adjustment (named: adjustments[i], its curvenet and knot)", body = ErrorBody),
+        (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
+    ))]
+pub(crate) async fn stage_frame_adjusted(
+    State(state): State<AppState>,
+    Params((index, k)): Params<(usize, usize)>,
+    _json: ContentType<JsonOnly>,
+    SizedBody(bytes): SizedBody,
+) -> Result<Json<ViewerFrame>, ServiceError> {
+    let request = parse_json::<ViewerAdjustRequest>(&bytes)?;
+    Ok(Json(solve_stage_frame(&state, index, k, &request.adjustments).await?))
+}
+
+/// The user's adjustments as a USD layer (`.usda` text) over the stage: see
+/// `adjust.rs`. `curvenet bake` of the layer reproduces the viewer's frame.
+#[utoipa::path(post, path = "/v1/viewer/stages/{index}/export", tag = "viewer", security(("bearer" = [])),
+    params(("index" = usize, Path, description = "The stage's index in /v1/viewer/stages")),
+    request_body = ViewerExportRequest,
+    responses(
+        (status = 200, description = "The layer, USD text (sublayers the stage)", content_type = "text/plain"),
+        (status = 400, description = "malformed_json", body = ErrorBody),
+        (status = 404, description = "not_found: no such stage or frame", body = ErrorBody),
+        (status = 422, description = "An adjustment is invalid (named: adjustments[i], its curvenet and knot)", body = ErrorBody),
+    ))]
+pub(crate) async fn stage_export(
+    State(state): State<AppState>,
+    Params(index): Params<usize>,
+    _json: ContentType<JsonOnly>,
+    SizedBody(bytes): SizedBody,
+) -> Result<Response, ServiceError> {
+    let request = parse_json::<ViewerExportRequest>(&bytes)?;
     let stage = state.viewer_stage(index)?;
-    let Some(&time) = stage.times.get(k) else {
-        return Err(ServiceError::new(
+    let time = frame_time(&stage, request.frame)?;
+    let (entry, _) = stage_entry(&state, &stage).await?;
+    user_adjustments(&entry, &stage, &request.adjustments)?;
+    let b = entry.binding();
+    let range = match (stage.times.first(), stage.times.last()) {
+        (Some(&a), Some(&z)) => Some((a, z)),
+        _ => None,
+    };
+    // The layer names the stage by its absolute path, so it can be saved anywhere.
+    let sublayer = std::fs::canonicalize(&stage.stage).map_or(stage.stage.clone(), |p| p.display().to_string());
+    let layer = adjust::export_layer(
+        &sublayer,
+        &stage.curvenets,
+        range,
+        &stage.adjustments,
+        time,
+        &request.adjustments,
+        |k, knot| {
+            let sampling = b.layouts()[k].sampling();
+            sampling.knot_sample(knot as usize).map_or(0, |i| b.orientation_plan(k).knot_tangents(i as usize).len())
+        },
+    );
+    let text = encode_adjustment_layer(&layer, LayerFormat::Usda).map_err(|e| {
+        ServiceError::new(Code::InvalidParameter, format!("{}: cannot write the adjustment layer: {e}", stage.mesh))
+    })?;
+    let name = std::path::Path::new(&stage.stage).file_stem().and_then(|s| s.to_str()).unwrap_or("stage");
+    let disposition = format!("attachment; filename=\"{}_adjusted.usda\"", name.replace(['"', '\\'], "_"));
+    Ok((
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static("text/plain; charset=utf-8")),
+            (
+                header::CONTENT_DISPOSITION,
+                HeaderValue::from_str(&disposition)
+                    .unwrap_or(HeaderValue::from_static("attachment; filename=\"adjusted.usda\"")),
+            ),
+        ],
+        text,
+    )
+        .into_response())
+}
+
+fn frame_time(stage: &ViewerStage, k: usize) -> Result<f64, ServiceError> {
+    stage.times.get(k).copied().ok_or_else(|| {
+        ServiceError::new(
             Code::NotFound,
             format!("{} has {} frames; frame {k} does not exist", stage.stage, stage.times.len()),
-        ));
-    };
-    let (entry, _) = stage_entry(&state, &stage).await?;
+        )
+    })
+}
+
+/// The user's adjustments as solved (see `adjust::layer_adjustment`),
+/// checked against the binding: a bad one is refused naming
+/// `adjustments[i]`, its curvenet and knot.
+fn user_adjustments(
+    entry: &Entry,
+    stage: &ViewerStage,
+    specs: &[AdjustmentSpec],
+) -> Result<Vec<Adjustment>, ServiceError> {
+    let user: Vec<Adjustment> = specs
+        .iter()
+        .map(|s| adjust::layer_adjustment(s, adjust::find(&stage.adjustments, s.curvenet, s.knot)))
+        .collect();
+    entry
+        .binding()
+        .check_adjustments(&user)
+        .map_err(|e| crate::frames::name_adjustment(ServiceError::core(e, Phase::Frame), &user))?;
+    Ok(user)
+}
+
+async fn solve_stage_frame(
+    state: &AppState,
+    index: usize,
+    k: usize,
+    specs: &[AdjustmentSpec],
+) -> Result<ViewerFrame, ServiceError> {
+    let stage = state.viewer_stage(index)?;
+    let time = frame_time(&stage, k)?;
+    let (entry, _) = stage_entry(state, &stage).await?;
+    let user = user_adjustments(&entry, &stage, specs)?;
     let read = stage.clone();
-    let request = blocking(move || {
+    let read = blocking(move || {
         (read.frame)(k)
             .map_err(|m| ServiceError::new(Code::InvalidParameter, format!("{}, frame {time}: {m}", read.stage)))
     })
     .await?;
     let context = format!("{} frame {time}", stage.mesh);
-    let admission = Admission::one(&state).await?;
-    let mut frame =
-        solve_frame(&state, admission, entry, Frame::from(request)).await.map_err(|e| e.context(&context))?;
-    frame.time = Some(time);
-    Ok(Json(frame))
+    let mut frame = Frame::from(read.request);
+    frame.adjustments.extend(read.adjustments);
+    frame.adjustments = adjust::compose(std::mem::take(&mut frame.adjustments), &user);
+    frame.orientations = true;
+    let admission = Admission::one(state).await?;
+    let mut view = solve_frame(state, admission, entry, frame).await.map_err(|e| e.context(&context))?;
+    view.time = Some(time);
+    for a in &mut view.adjustments {
+        let (c, n) = (a.adjustment.curvenet, a.adjustment.knot);
+        a.prim = adjust::find(&stage.adjustments, c, n).map(|s| s.data.path.clone());
+        if user.iter().any(|u| u.curvenet == c as usize && u.knot == n) {
+            a.source = "user".into();
+        }
+    }
+    Ok(view)
 }
 
 /// The geometry of a cached binding, for the viewer.
@@ -578,6 +791,12 @@ fn viewer_frame_view(entry: &Entry, frame: &Frame, solved: &Solved) -> Result<Vi
         solve_ms: solved.solve_ms,
         curvenets,
         rest,
+        adjustments: frame
+            .adjustments
+            .iter()
+            .map(|a| ViewerAdjustment { adjustment: adjust::spec_of(a), prim: None, source: "stage".into() })
+            .collect(),
+        knot_orientations: solved.knot_orientations.clone(),
     })
 }
 
@@ -694,6 +913,7 @@ pub fn data(entry: &Entry) -> ViewerData {
                 far_samples,
                 projections: flat(&projections),
                 frames: flat_frames(layout.neutral_frames()),
+                knots: (0..layout.sampling().n_knots()).map(|i| layout.sampling().knot_point(i)).collect(),
             }
         })
         .collect();

@@ -15,6 +15,15 @@
 // v1/viewer/stages/{i}/refusal: the mesh, the curvenets and the element the
 // error names, highlighted and framed.
 //
+// Curvenet Adjustments (adjust.js): every knot's orientation frame is drawn
+// in the deformed view (frames carry knot_orientations); a click near a
+// knot picks it, and the panel's fields adjust it. Each change posts the
+// frame again with the user's adjustments (POST v1/viewer/stages/{i}/frames/{k},
+// or the binding's viewer-frame), debounced, one request in flight, the
+// latest change sent when it returns. The user's adjustments belong to the
+// frame they were made at (another frame shows the stage's own); "export"
+// downloads them as a USD layer over the stage (POST v1/viewer/stages/{i}/export).
+//
 // For tests and scripts, <body> carries data-state (loading | ready |
 // refused | error) and data-rendered (the frame index of the last drawn
 // frame, "-1" before the first, "refusal" for a refused stage); every count
@@ -22,7 +31,11 @@
 // data-value="number"; #problem-label names a refusal's element
 // (data-code, data-element, data-curvenet, data-spline, data-segment,
 // data-sample, data-faces, data-vertices) and so does every warning's <li>.
-import { api, setToken } from './api.js';
+// data-knot is the picked knot ("curvenet:knot"), data-adjusted counts the
+// frames drawn with the user's adjustments. window.curvenetViewer is the
+// scripting API (pickKnot, setAdjustment, lastFramePoints, exportLayer, ...).
+import { api, token, setToken } from './api.js';
+import { AXIS_COLORS, AXIS_LENGTH, PICK_RADIUS, knotKey, knotAxes, knotPosition, project, nearestKnot, buildFields, setFields, readFields } from './adjust.js';
 import { vadd, vsub, vscale, vcross, pick3, indexSegments, multiply, perspective, lookAt } from './math.js';
 import { camera, cameraFrame, fitCamera, fitBox, faceTheCurvenet } from './camera.js';
 import { createRenderer } from './gl.js';
@@ -54,14 +67,24 @@ const view = {
   pose: 'deformed',
   picked: -1,
   boxScale: 1,
-  layers: { shaded: true, wire: false, cut: true, curvenet: true, frames: true, problems: true },
+  layers: { shaded: true, wire: false, cut: true, curvenet: true, frames: true, problems: true, knots: true },
   selected: -1,       // the highlight (warning) clicked in the panel, framed
   gpu: null,          // static GPU objects of the binding
   dyn: null,          // GPU objects of the current pose
   dynKey: '',
   playing: false,
   generation: 0,      // bumps on every source change (stale fetches are dropped)
+  knot: null,         // the picked knot: { curvenet, knot } (pool index)
+  user: new Map(),    // frame index -> Map(knotKey -> AdjustmentSpec): the user's adjustments
+  serial: 0,          // bumps with every frame fetched (the pose's GPU key)
+  adjusted: 0,        // frames drawn with the user's adjustments (data-adjusted)
 };
+
+/** The user's adjustments at frame `k`, as the service takes them. */
+function userSpecs(k) {
+  const m = view.user.get(k);
+  return m ? Array.from(m.values()) : [];
+}
 
 // The 12 edges of the scaled-frame boxes of every segment side (paper Fig. 5),
 // as flat segment pairs, split by side.
@@ -171,7 +194,7 @@ function currentPose() {
   const data = view.data;
   const frame = view.frames.get(view.frame);
   if (view.pose === 'deformed' && frame) {
-    return { key: `d${view.frame}`, points: frame.points, cutPoints: frame.cut_points, nets: frame.curvenets };
+    return { key: `d${view.frame}:${frame.serial}`, points: frame.points, cutPoints: frame.cut_points, nets: frame.curvenets, orientations: frame.knot_orientations };
   }
   if (frame && frame.rest) {
     const r = frame.rest;
@@ -183,7 +206,7 @@ function currentPose() {
 function buildDynamic() {
   const data = view.data, g = view.gpu;
   const pose = currentPose();
-  const key = `${pose.key}|${view.boxScale}|${view.picked}|${view.selected}`;
+  const key = `${pose.key}|${view.boxScale}|${view.picked}|${view.selected}|${view.knot ? knotKey(view.knot.curvenet, view.knot.knot) : ''}`;
   if (view.dyn && view.dynKey === key) return;
   if (view.dyn) {
     for (const s of view.dyn.sets) free(s);
@@ -220,9 +243,13 @@ function buildDynamic() {
   };
   const picked = buildPicked(cp);
   const highlights = buildHighlights(renderer, data.highlights || [], { points, nets: pose.nets });
+  // The knots' orientation axes and the picked knot (deformed view only: the frames carry the orientations).
+  const axes = knotAxes(data, pose.nets, pose.orientations, AXIS_LENGTH * (data.diagonal || 1)).map((a) => wideLines(a));
+  const at = view.knot && pose.orientations && knotPosition(data, pose.nets, view.knot.curvenet, view.knot.knot);
+  const knot = at ? pointSet(new Float32Array(at)) : null;
   const sets = nets.flatMap((n) => Object.values(n)).concat(Object.values(cut), picked ? picked.sets : [],
-    highlights.flatMap((h) => [h.lines, h.points, h.faces]));
-  view.dyn = { nets, cut, picked, highlights, sets, points };
+    highlights.flatMap((h) => [h.lines, h.points, h.faces]), axes, knot ? [knot] : []);
+  view.dyn = { nets, cut, picked, highlights, sets, points, axes, knot };
   view.dynKey = key;
 }
 
@@ -355,6 +382,12 @@ function draw() {
       drawFlat(n.removed, mvp, [1.0, 0.31, 0.85, 1], gl.POINTS, 9);
     }
   });
+  if (L.knots) dyn.axes.forEach((a, j) => drawWide(a, mvp, AXIS_COLORS[j], 2.5));
+  if (dyn.knot) {
+    gl.disable(gl.DEPTH_TEST);
+    drawFlat(dyn.knot, mvp, [1, 1, 1, 1], gl.POINTS, 15);
+    gl.enable(gl.DEPTH_TEST);
+  }
   // What the warnings or the refusal name, in violet: faces filled over the
   // surface, lines and markers on top of everything (never hidden).
   if (L.problems && dyn.highlights.length) {
@@ -377,6 +410,7 @@ function draw() {
 }
 
 let drawQueued = false;
+const afterDraw = []; // called once the next draw is on the canvas
 function requestDraw() {
   if (drawQueued) return;
   drawQueued = true;
@@ -394,6 +428,7 @@ function requestDraw() {
       body.dataset.pose = view.pose;
       $('overlay').textContent = overlayText();
     }
+    for (const f of afterDraw.splice(0)) f();
   });
 }
 
@@ -488,6 +523,9 @@ canvas.addEventListener('pointermove', (e) => {
 });
 canvas.addEventListener('pointerup', (e) => {
   if (drag && Math.hypot(e.clientX - drag.x0, e.clientY - drag.y0) < 4 && e.button === 0) {
+    // The face under the click, and the knot near it (deformed view, knot frames shown), if any.
+    const knot = knotAt(e.clientX, e.clientY);
+    if (knot) pickKnot(knot.curvenet, knot.knot);
     setPicked(pickAt(e.clientX, e.clientY));
   }
   drag = null;
@@ -541,14 +579,23 @@ $('source-select').addEventListener('change', (e) => {
 
 // ------------------------------------------------------------ frames
 
+// Frame k solved on the server, with the user's adjustments at k (if any).
+async function requestFrame(k) {
+  const s = view.source;
+  const adjustments = userSpecs(k);
+  const post = (path, body) => api(path, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: JSON.stringify(body) });
+  if (s.kind === 'stage') {
+    return adjustments.length ? post(`v1/viewer/stages/${s.index}/frames/${k}`, { adjustments }) : api(`v1/viewer/stages/${s.index}/frames/${k}`);
+  }
+  return post(`v1/bindings/${s.id}/viewer-frame`, { orientations: true, adjustments });
+}
+
 async function fetchFrame(k) {
   if (view.frames.has(k)) return view.frames.get(k);
   const generation = view.generation;
-  const s = view.source;
-  const frame = s.kind === 'stage'
-    ? await api(`v1/viewer/stages/${s.index}/frames/${k}`)
-    : await api(`v1/bindings/${s.id}/viewer-frame`, { method: 'POST', headers: { 'Content-Type': 'application/json' }, body: '{}' });
+  const frame = await requestFrame(k);
   if (generation !== view.generation) return null;
+  frame.serial = ++view.serial;
   frame.points = new Float32Array(frame.points);
   frame.cut_points = new Float32Array(frame.cut_points);
   if (frame.rest) {
@@ -571,6 +618,7 @@ async function showFrame(k) {
     view.frame = k;
     $('solve-label').textContent = `solve ${frame.solve_ms.toFixed(1)} ms`;
     say('');
+    fillKnotPanel();
     requestDraw();
   } catch (e) {
     say(`frame ${t}: ${e.message}`);
@@ -774,7 +822,11 @@ async function open(source) {
     view.frame = 0;
     view.gpu = buildStatic(data);
     view.selected = -1;
+    view.user = new Map();
+    view.knot = null;
+    buildFields($('adjust-table'), data.diagonal || 1, onFieldInput);
     setPicked(-1);
+    fillKnotPanel();
     fillPanel(data);
     const url = new URL(location.href);
     url.search = source.kind === 'stage' ? `?stage=${source.index}` : `?binding=${id}`;
@@ -811,6 +863,9 @@ function showRefusal(source, refusal) {
   view.frame = 0;
   view.gpu = buildStatic(data);
   view.selected = 0;
+  view.user = new Map();
+  view.knot = null;
+  fillKnotPanel();
   setPicked(-1);
   fillPanel(data);
   const url = new URL(location.href);
@@ -863,8 +918,215 @@ async function start() {
   }
 }
 
-// For scripts and the browser console.
-window.curvenetViewer = { view, camera, pickAt, showFrame, open, select, requestDraw };
+// ------------------------------------------------------------ adjustments
+
+function knotAt(clientX, clientY) {
+  const frame = view.frames.get(view.frame);
+  if (!view.data || view.data.refused || view.pose !== 'deformed' || !view.layers.knots || !frame || !frame.knot_orientations) return null;
+  return nearestKnot(view.data, frame.curvenets, matrices().mvp, canvas.getBoundingClientRect(), clientX, clientY, PICK_RADIUS);
+}
+
+/** Client coordinates of knot `knot` (pool index) of curvenet `k` in the frame shown, or null. */
+function knotScreenPosition(k, knot) {
+  const frame = view.frames.get(view.frame);
+  if (!frame) return null;
+  resize();
+  const p = knotPosition(view.data, frame.curvenets, k, knot);
+  const s = p && project(matrices().mvp, canvas.getBoundingClientRect(), p);
+  return s && { x: s.x, y: s.y };
+}
+
+/** Picks knot `knot` (pool index) of curvenet `k`; false when it is not a knot. */
+function pickKnot(k, knot) {
+  const c = view.data && view.data.curvenets[k];
+  if (!c || !c.knots || !c.knots.includes(knot)) return false;
+  view.knot = { curvenet: k, knot };
+  fillKnotPanel();
+  requestDraw();
+  return true;
+}
+
+// The adjustment of the picked knot at the frame shown: the user's, else
+// what the frame applied (the stage's), else none.
+function shownAdjustment() {
+  if (!view.knot) return null;
+  const key = knotKey(view.knot.curvenet, view.knot.knot);
+  const mine = view.user.get(view.frame);
+  if (mine && mine.has(key)) return { spec: mine.get(key), source: 'yours' };
+  const frame = view.frames.get(view.frame);
+  const applied = frame && (frame.adjustments || []).find((a) => a.curvenet === view.knot.curvenet && a.knot === view.knot.knot);
+  return applied ? { spec: applied, source: applied.prim ? `the stage's ${applied.prim}` : "the stage's" } : null;
+}
+
+function fillKnotCount() {
+  const count = userSpecs(view.frame).length;
+  $('adjust-count').textContent = count ? `${count} adjusted at frame ${view.times[view.frame]}` : '';
+  $('adjust-count').dataset.value = String(count);
+  $('adjust-export').disabled = !(view.source && view.source.kind === 'stage' && count);
+}
+
+function fillKnotPanel() {
+  const label = $('knot-label'), fields = $('adjust-fields');
+  fillKnotCount();
+  if (!view.knot) {
+    label.textContent = 'click near a knot (a spline end) in the deformed view to adjust it';
+    delete body.dataset.knot;
+    fields.hidden = true;
+    return;
+  }
+  const { curvenet, knot } = view.knot;
+  body.dataset.knot = knotKey(curvenet, knot);
+  const shown = shownAdjustment();
+  const name = view.stageInfo && view.stageInfo.curvenets ? view.stageInfo.curvenets[curvenet] : `curvenet ${curvenet}`;
+  label.textContent = `${name}, knot ${knot}: ${shown ? `adjusted (${shown.source})` : 'not adjusted'}`;
+  label.dataset.curvenet = String(curvenet);
+  label.dataset.knot = String(knot);
+  fields.hidden = false;
+  setFields($('adjust-table'), shown && shown.spec);
+  $('adjust-attach').checked = !shown || shown.spec.attach_tangents !== false;
+}
+
+function onFieldInput() {
+  if (!view.knot) return;
+  const shown = shownAdjustment();
+  const v = readFields($('adjust-table'));
+  setAdjustment({
+    curvenet: view.knot.curvenet, knot: view.knot.knot, translate: v.translate, rotate: v.rotate, scale: v.scale,
+    attach_tangents: $('adjust-attach').checked,
+    tangent_translates: (shown && shown.spec.tangent_translates) || [],
+  }, false).catch(() => {});
+}
+
+// Live updates: debounced, one request in flight; a change made meanwhile
+// is sent when it returns. The promises of setAdjustment resolve once the
+// frame with the latest adjustments is drawn.
+const live = { timer: null, inFlight: false, again: false, refill: false, waiters: [] };
+
+/**
+ * Sets the user's adjustment of a knot at the frame shown (an
+ * AdjustmentSpec: curvenet, knot, translate, rotate, scale, attach_tangents,
+ * tangent_translates). Resolves with the frame drawn.
+ */
+function setAdjustment(spec, refill = true) {
+  const k = view.frame;
+  if (!view.user.has(k)) view.user.set(k, new Map());
+  view.user.get(k).set(knotKey(spec.curvenet, spec.knot), spec);
+  return refresh(refill);
+}
+
+/** Clears the user's adjustment of the picked knot at the frame shown. */
+function resetKnot() {
+  if (!view.knot) return Promise.resolve(null);
+  const m = view.user.get(view.frame);
+  if (m) m.delete(knotKey(view.knot.curvenet, view.knot.knot));
+  return refresh(true);
+}
+
+function refresh(refill) {
+  live.refill = live.refill || refill;
+  fillKnotCount();
+  const done = new Promise((resolve, reject) => live.waiters.push({ resolve, reject }));
+  if (live.timer) clearTimeout(live.timer);
+  live.timer = setTimeout(runRefresh, 40);
+  return done;
+}
+
+async function runRefresh() {
+  live.timer = null;
+  if (live.inFlight) { live.again = true; return; }
+  live.inFlight = true;
+  const k = view.frame, generation = view.generation;
+  let result = null, error = null;
+  try {
+    const frame = await requestFrame(k);
+    if (generation === view.generation) {
+      frame.serial = ++view.serial;
+      frame.points = new Float32Array(frame.points);
+      frame.cut_points = new Float32Array(frame.cut_points);
+      if (frame.rest) {
+        frame.rest.points = new Float32Array(frame.rest.points);
+        frame.rest.cut_points = new Float32Array(frame.rest.cut_points);
+      }
+      view.frames.set(k, frame);
+      $('solve-label').textContent = `solve ${frame.solve_ms.toFixed(1)} ms`;
+      say('');
+      result = frame;
+    }
+  } catch (e) {
+    error = e;
+    say(`adjustment: ${e.message}`);
+  }
+  live.inFlight = false;
+  if (live.again || live.timer) {
+    live.again = false;
+    if (!live.timer) runRefresh();
+    return; // the waiters wait for the latest
+  }
+  if (live.refill) fillKnotPanel();
+  else fillKnotCount();
+  live.refill = false;
+  const waiters = live.waiters.splice(0);
+  if (error) {
+    for (const w of waiters) w.reject(error);
+    return;
+  }
+  afterDraw.push(() => {
+    if (result) body.dataset.adjusted = String(++view.adjusted);
+    for (const w of waiters) w.resolve(result);
+  });
+  requestDraw();
+}
+
+/** The user's adjustments at the frame shown as a USD layer (text), from the server. */
+async function exportLayer() {
+  const s = view.source;
+  if (!s || s.kind !== 'stage') throw new Error('export needs a stage opened with --open-stage');
+  const headers = { 'Content-Type': 'application/json' };
+  if (token) headers.Authorization = `Bearer ${token}`;
+  const response = await fetch(`v1/viewer/stages/${s.index}/export`, {
+    method: 'POST', headers, body: JSON.stringify({ frame: view.frame, adjustments: userSpecs(view.frame) }),
+  });
+  const text = await response.text();
+  if (!response.ok) {
+    let message = text;
+    try { const j = JSON.parse(text); message = `${j.code}: ${j.message}`; } catch (_) { /* not JSON */ }
+    throw new Error(message);
+  }
+  return text;
+}
+
+$('adjust-attach').addEventListener('change', onFieldInput);
+$('adjust-reset').addEventListener('click', () => resetKnot().catch(() => {}));
+$('adjust-export').addEventListener('click', async () => {
+  try {
+    const text = await exportLayer();
+    const stem = (view.stageInfo.stage.split('/').pop() || 'stage').replace(/\.[^.]*$/, '');
+    const a = document.createElement('a');
+    a.href = URL.createObjectURL(new Blob([text], { type: 'text/plain' }));
+    a.download = `${stem}_adjusted.usda`;
+    document.body.append(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(a.href), 1000);
+    say(`exported ${a.download}: curvenet bake ${a.download} -o OUT bakes it`);
+  } catch (e) {
+    say(`export: ${e.message}`);
+  }
+});
+
+/** The points of the frame shown, as drawn (f32 values, flat xyz). */
+function lastFramePoints() {
+  const frame = view.frames.get(view.frame);
+  return frame ? Array.from(frame.points) : null;
+}
+
+// For scripts, tests and the browser console.
+window.curvenetViewer = {
+  view, camera, pickAt, showFrame, open, select, requestDraw,
+  pickKnot, setAdjustment, resetKnot, lastFramePoints, exportLayer, knotScreenPosition,
+  adjustments: () => userSpecs(view.frame),
+};
+
 
 body.dataset.rendered = '-1';
 start();
