@@ -88,6 +88,9 @@ fn frame<'a>(c: &'a Case, posed: &'a [Option<&'a [[f64; 3]]>]) -> Frame<'a> {
     }
 }
 
+/// A frame's points and, when asked for, gradients.
+type Solved = (Vec<[f64; 3]>, Option<Vec<[f64; 9]>>);
+
 /// Largest difference over the largest magnitude.
 fn relative(a: &[f64], b: &[f64]) -> f64 {
     let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
@@ -101,7 +104,7 @@ fn check(rel: &str) {
         cases.iter().map(|c| c.posed.iter().map(|p| p.as_deref()).collect()).collect();
     let frames: Vec<Frame<'_>> = cases.iter().zip(&posed).map(|(c, p)| frame(c, p)).collect();
     // One by one.
-    let single: Vec<(Vec<[f64; 3]>, Option<Vec<[f64; 9]>>)> = frames
+    let single: Vec<Solved> = frames
         .iter()
         .zip(&cases)
         .map(|(f, c)| {
