@@ -23,6 +23,10 @@
 //!   spline skinning of curvenets (Rig::curvenets)
 //!   Binding::deform (§4.3, §5; Curvenet Adjustments)
 //!   blend shapes after (mapped by F_v)
+//! [Frame] ──Deformer::frames──▶ the same, per frame, for a group of frames:
+//!   each frame's work before the solves, then ONE sweep of each triangular
+//!   solve over all the group's columns (9 per frame, then 3), then each
+//!   frame's work after them: the factor is read once per group
 //! ```
 //!
 //! A `Deformer` is immutable and `Send + Sync`: frames of one deformer may
