@@ -223,8 +223,9 @@ pub const MAX_BATCH_FRAMES: usize = 32;
 
 /// The group size callers use when they have no reason to choose another
 /// (`curvenet bake --batch-frames`, the service's batches): the K with the
-/// best all-threads throughput in `curvenet bench` on the hands (README,
-/// Performance).
+/// best throughput on both threads at 94k in `curvenet bench` (one run on a
+/// loaded machine, README, Performance; at 22k the K values were within
+/// the noise of each other).
 pub const DEFAULT_BATCH_FRAMES: usize = 8;
 
 /// A bound mesh: the binding, the blend shapes and a pool of workspaces.
