@@ -23,6 +23,10 @@
 //!   spline skinning of curvenets (Rig::curvenets)
 //!   Binding::deform (§4.3, §5; Curvenet Adjustments)
 //!   blend shapes after (mapped by F_v)
+//! [Frame] ──Deformer::frames──▶ the same, per frame, for a group of frames:
+//!   each frame's work before the solves, then ONE sweep of each triangular
+//!   solve over all the group's columns (9 per frame, then 3), then each
+//!   frame's work after them: the factor is read once per group
 //! ```
 //!
 //! A `Deformer` is immutable and `Send + Sync`: frames of one deformer may
@@ -218,6 +222,45 @@ struct Scratch {
     cage: CoupledWorkspace,
 }
 
+/// The workspaces of a group of frames solved together ([`Deformer::frames`]).
+#[derive(Debug, Default)]
+struct Batch {
+    /// One per frame of the largest group solved so far.
+    scratches: Vec<Scratch>,
+    /// The stacked right-hand sides: unknowns × (9 × frames), reused for the 3-column solve.
+    rows: Vec<f64>,
+}
+
+/// Where [`Deformer::frames`] writes one frame: its points and, when
+/// given, its per-vertex deformation gradients.
+#[derive(Debug)]
+pub struct FrameOut<'a> {
+    pub points: &'a mut [[f64; 3]],
+    pub gradients: Option<&'a mut [[f64; 9]]>,
+}
+
+/// A frame of [`Deformer::frames`] failed: its index in the frames given, and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("frame {frame} of the group: {error}")]
+pub struct BatchError {
+    pub frame: usize,
+    #[source]
+    pub error: Error,
+}
+
+/// The most frames [`Deformer::frames`] solves in one sweep; more are
+/// solved in consecutive groups of this many (the widest group
+/// `curvenet bench` measures; the stacked columns hold unknowns × 9 × K
+/// values, 2.3 KB per unknown at 32).
+pub const MAX_BATCH_FRAMES: usize = 32;
+
+/// The group size callers use when they have no reason to choose another
+/// (`curvenet bake --batch-frames`, the service's batches): the K with the
+/// best throughput on both threads at 94k in `curvenet bench` (one run on a
+/// loaded machine, README, Performance; at 22k the K values were within
+/// the noise of each other).
+pub const DEFAULT_BATCH_FRAMES: usize = 8;
+
 /// A bound mesh: the binding, the blend shapes and a pool of workspaces.
 #[derive(Debug)]
 pub struct Deformer {
@@ -226,6 +269,8 @@ pub struct Deformer {
     projection_points: Vec<[f64; 3]>,
     timings: DeformerTimings,
     pool: Mutex<Vec<Scratch>>,
+    /// Workspaces of groups of frames ([`Deformer::frames`]).
+    batches: Mutex<Vec<Batch>>,
     rig: Option<Rig>,
     cage: Option<CoupledRig>,
     flexible_iterations: AtomicU64,
@@ -291,6 +336,7 @@ impl Deformer {
             projection_points: m.projection_points.to_vec(),
             timings,
             pool: Mutex::new(Vec::new()),
+            batches: Mutex::new(Vec::new()),
             rig,
             cage,
             flexible_iterations: AtomicU64::new(0),
@@ -318,6 +364,105 @@ impl Deformer {
     /// Errors name the array and element (counts, non-finite values, a
     /// degenerate pose of a named curvenet, a joint transform).
     pub fn frame(&self, frame: &Frame<'_>, out: &mut [[f64; 3]], gradients: Option<&mut [[f64; 9]]>) -> Result<()> {
+        let mut s = self.take();
+        let result = (|| {
+            self.stage(frame, &mut s, out.len())?;
+            self.binding.solve_harmonic(&mut s.ws);
+            self.binding.deform_poisson_rhs(&mut s.ws);
+            self.binding.solve_poisson(&mut s.ws);
+            self.finish(frame, &mut s, out, gradients)
+        })();
+        self.give(s);
+        result
+    }
+
+    /// Deforms the mesh for several frames at once: frame `i` of `frames`
+    /// into `outs[i]` (points and, when given, gradients), exactly as
+    /// [`Self::frame`] would, in one sweep of each triangular solve for up
+    /// to [`MAX_BATCH_FRAMES`] frames (more are solved in consecutive
+    /// groups of that many). Each frame's work before and after the solves
+    /// is done frame by frame into its own workspace; the harmonic
+    /// right-hand sides of all frames (9 columns each) are then stacked
+    /// side by side per row, in the factor's row order, and solved in one
+    /// sweep, as are the Poisson ones (3 columns each), so every factor
+    /// entry is read once per group rather than once per frame. The results
+    /// are bit for bit those of [`Self::frame`] (every column sees the same
+    /// operations in the same order), whatever the group size.
+    ///
+    /// Runs on the calling thread: parallelise across groups of frames.
+    /// Allocates nothing once a group of at least as many frames has been
+    /// solved (the workspaces of a group and its stacked columns are kept
+    /// for reuse, one set per thread solving groups at once), except as
+    /// [`Self::frame`] does per frame: a workspace sizes the buffers a
+    /// frame's mode needs the first time a frame in that mode uses it.
+    /// An error names the frame (its index in `frames`); the outputs of the
+    /// other frames are then unspecified.
+    pub fn frames(&self, frames: &[Frame<'_>], outs: &mut [FrameOut<'_>]) -> std::result::Result<(), BatchError> {
+        if outs.len() != frames.len() {
+            let error = Error::CountMismatch { what: "frame outputs", expected: frames.len(), got: outs.len() };
+            return Err(BatchError { frame: frames.len().min(outs.len()), error });
+        }
+        let mut batch = self.take_batch();
+        let mut result = Ok(());
+        for (g, (group, outs)) in frames.chunks(MAX_BATCH_FRAMES).zip(outs.chunks_mut(MAX_BATCH_FRAMES)).enumerate() {
+            result = self
+                .solve_group(group, outs, &mut batch)
+                .map_err(|(i, error)| BatchError { frame: g * MAX_BATCH_FRAMES + i, error });
+            if result.is_err() {
+                break;
+            }
+        }
+        self.give_batch(batch);
+        result
+    }
+
+    /// One sweep of each solve for `frames` (at most [`MAX_BATCH_FRAMES`]).
+    fn solve_group(
+        &self,
+        frames: &[Frame<'_>],
+        outs: &mut [FrameOut<'_>],
+        batch: &mut Batch,
+    ) -> std::result::Result<(), (usize, Error)> {
+        let k = frames.len();
+        while batch.scratches.len() < k {
+            batch.scratches.push(self.take());
+        }
+        let u = self.binding.n_unknowns();
+        let scratches = &mut batch.scratches[..k];
+        for (i, ((frame, out), s)) in frames.iter().zip(outs.iter()).zip(scratches.iter_mut()).enumerate() {
+            self.stage(frame, s, out.points.len()).map_err(|e| (i, e))?;
+        }
+        // The harmonic solve: 9 columns per frame.
+        let width = 9 * k;
+        batch.rows.resize(u * width, 0.0);
+        let rows = &mut batch.rows[..u * width];
+        for (i, s) in scratches.iter_mut().enumerate() {
+            self.binding.gather_permuted(s.ws.harmonic_rows(), rows, width, i);
+        }
+        self.binding.solve_permuted(width, rows);
+        for (i, s) in scratches.iter_mut().enumerate() {
+            self.binding.scatter_permuted(rows, width, i, s.ws.harmonic_rows());
+            self.binding.deform_poisson_rhs(&mut s.ws);
+        }
+        // The Poisson solve: 3 columns per frame.
+        let width = 3 * k;
+        let rows = &mut batch.rows[..u * width];
+        for (i, s) in scratches.iter_mut().enumerate() {
+            self.binding.gather_permuted(s.ws.poisson_rows(), rows, width, i);
+        }
+        self.binding.solve_permuted(width, rows);
+        for (i, ((frame, out), s)) in frames.iter().zip(outs.iter_mut()).zip(scratches.iter_mut()).enumerate() {
+            self.binding.scatter_permuted(rows, width, i, s.ws.poisson_rows());
+            self.finish(frame, s, out.points, out.gradients.as_deref_mut()).map_err(|e| (i, e))?;
+        }
+        Ok(())
+    }
+
+    /// A frame's work before its solves, into `s`: checks, blend shapes in
+    /// the `before` mode, the rig's skinning, then the binding's curvenet
+    /// deformation, constraint rows and harmonic right-hand side. `n_out`:
+    /// the length of the caller's output points.
+    fn stage(&self, frame: &Frame<'_>, s: &mut Scratch, n_out: usize) -> Result<()> {
         let n = self.binding.n_vertices();
         if let Some(w) = frame.blend_shape_weights
             && w.len() != self.shapes.len()
@@ -350,120 +495,140 @@ impl Deformer {
         if skinning.is_some() && !frame.posed.is_empty() && frame.posed.len() != n_nets {
             return Err(Error::CountMismatch { what: "posed curvenets", expected: n_nets, got: frame.posed.len() });
         }
-        let mut s = self.take();
-        let weights = frame.blend_shape_weights.filter(|w| !self.shapes.is_empty() && w.iter().any(|&x| x != 0.0));
-        let result = (|| {
-            let rest = match (weights, frame.blend_shape_mode) {
-                (Some(w), BlendShapeMode::Before) => {
-                    s.sculpted.clear();
-                    s.sculpted.extend_from_slice(frame.rest.unwrap_or(&self.projection_points));
-                    if s.sculpted.len() != n {
-                        return Err(Error::CountMismatch {
-                            what: "rest-pose points",
-                            expected: n,
-                            got: s.sculpted.len(),
-                        });
-                    }
-                    self.shapes.add_to(w, &mut s.sculpted)?;
-                    Some(&s.sculpted[..])
+        let weights = self.active_weights(frame);
+        let rest = match (weights, frame.blend_shape_mode) {
+            (Some(w), BlendShapeMode::Before) => {
+                s.sculpted.clear();
+                s.sculpted.extend_from_slice(frame.rest.unwrap_or(&self.projection_points));
+                if s.sculpted.len() != n {
+                    return Err(Error::CountMismatch { what: "rest-pose points", expected: n, got: s.sculpted.len() });
                 }
-                _ => frame.rest,
-            };
-            // The rig: the rest pose skinned (through the coupled cage when
-            // there is one), spline-skinned curvenets posed.
-            let mut skinned_posed: Vec<Option<&[[f64; 3]]>> = Vec::new();
-            let rest = match (skinning, &self.cage) {
-                (None, None) => rest,
-                (None, Some(cage)) => {
-                    // The cage alone (or a rig posed at bind this frame).
-                    let base = rest.unwrap_or(&self.projection_points);
-                    s.skinned.resize(base.len(), [0.0; 3]);
-                    let f = CageFrame {
-                        base: Some(base),
-                        rest_cage: frame.rest_cage,
-                        joint_transforms: None,
-                        posed_cage_offsets: frame.posed_cage_offsets,
-                    };
-                    cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
-                    Some(&s.skinned[..])
-                }
-                (Some((rig, frame_transforms)), cage) => {
-                    let bind = rest.unwrap_or(&self.projection_points);
-                    s.skinned.resize(bind.len(), [0.0; 3]);
-                    let transforms = match cage {
-                        None => {
-                            rig.skin.skin_points(bind, frame_transforms, &mut s.skinned)?;
-                            frame_transforms
-                        }
-                        Some(cage) => {
-                            let f = CageFrame {
-                                base: Some(bind),
-                                rest_cage: frame.rest_cage,
-                                joint_transforms: Some(frame_transforms),
-                                posed_cage_offsets: frame.posed_cage_offsets,
-                            };
-                            cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
-                            // The curvenets follow the joints SkelUp moved.
-                            s.cage.transforms()
-                        }
-                    };
-                    s.pools.resize_with(n_nets, Vec::new);
-                    for (k, spline) in rig.curvenets.iter().enumerate() {
-                        let Some(spline) = spline else { continue };
-                        let pool = &mut s.pools[k];
-                        pool.resize(spline.n_points(), [0.0; 3]);
-                        let posed = if rig.flexible_iterations == 0 {
-                            spline.pose(transforms, pool)
-                        } else {
-                            spline.pose_flexible(transforms, rig.flexible_iterations, pool).map(|report| {
-                                self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
-                                self.flexible_poses.fetch_add(1, Ordering::Relaxed);
-                            })
-                        };
-                        posed.map_err(|e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) })?;
-                    }
-                    skinned_posed.extend(rig.curvenets.iter().enumerate().map(|(k, spline)| match spline {
-                        Some(_) => Some(&s.pools[k][..]),
-                        None => frame.posed.get(k).copied().flatten(),
-                    }));
-                    Some(&s.skinned[..])
-                }
-            };
-            let posed = if !skinned_posed.is_empty() {
-                &skinned_posed[..]
-            } else if frame.posed.is_empty() {
-                &s.unposed[..]
-            } else {
-                frame.posed
-            };
-            let after = weights.filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
-            match (after, gradients) {
-                (Some(w), Some(g)) => {
-                    self.binding.deform(
-                        &FrameInput { posed, rest, adjustments: frame.adjustments },
-                        &mut s.ws,
-                        out,
-                        Some(&mut *g),
-                    )?;
-                    self.shapes.add_deformed(w, g, out)
-                }
-                (Some(w), None) => {
-                    s.gradients.resize(n, [0.0; 9]);
-                    self.binding.deform(
-                        &FrameInput { posed, rest, adjustments: frame.adjustments },
-                        &mut s.ws,
-                        out,
-                        Some(&mut s.gradients),
-                    )?;
-                    self.shapes.add_deformed(w, &s.gradients, out)
-                }
-                (None, g) => {
-                    self.binding.deform(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, out, g)
-                }
+                self.shapes.add_to(w, &mut s.sculpted)?;
+                Some(&s.sculpted[..])
             }
-        })();
-        self.give(s);
-        result
+            _ => frame.rest,
+        };
+        // The rig: the rest pose skinned (through the coupled cage when
+        // there is one), spline-skinned curvenets posed.
+        let mut skinned_posed: Vec<Option<&[[f64; 3]]>> = Vec::new();
+        let rest = match (skinning, &self.cage) {
+            (None, None) => rest,
+            (None, Some(cage)) => {
+                // The cage alone (or a rig posed at bind this frame).
+                let base = rest.unwrap_or(&self.projection_points);
+                s.skinned.resize(base.len(), [0.0; 3]);
+                let f = CageFrame {
+                    base: Some(base),
+                    rest_cage: frame.rest_cage,
+                    joint_transforms: None,
+                    posed_cage_offsets: frame.posed_cage_offsets,
+                };
+                cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
+                Some(&s.skinned[..])
+            }
+            (Some((rig, frame_transforms)), cage) => {
+                let bind = rest.unwrap_or(&self.projection_points);
+                s.skinned.resize(bind.len(), [0.0; 3]);
+                let transforms = match cage {
+                    None => {
+                        rig.skin.skin_points(bind, frame_transforms, &mut s.skinned)?;
+                        frame_transforms
+                    }
+                    Some(cage) => {
+                        let f = CageFrame {
+                            base: Some(bind),
+                            rest_cage: frame.rest_cage,
+                            joint_transforms: Some(frame_transforms),
+                            posed_cage_offsets: frame.posed_cage_offsets,
+                        };
+                        cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
+                        // The curvenets follow the joints SkelUp moved.
+                        s.cage.transforms()
+                    }
+                };
+                s.pools.resize_with(n_nets, Vec::new);
+                for (k, spline) in rig.curvenets.iter().enumerate() {
+                    let Some(spline) = spline else { continue };
+                    let pool = &mut s.pools[k];
+                    pool.resize(spline.n_points(), [0.0; 3]);
+                    let posed = if rig.flexible_iterations == 0 {
+                        spline.pose(transforms, pool)
+                    } else {
+                        spline.pose_flexible(transforms, rig.flexible_iterations, pool).map(|report| {
+                            self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
+                            self.flexible_poses.fetch_add(1, Ordering::Relaxed);
+                        })
+                    };
+                    posed.map_err(|e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) })?;
+                }
+                skinned_posed.extend(rig.curvenets.iter().enumerate().map(|(k, spline)| match spline {
+                    Some(_) => Some(&s.pools[k][..]),
+                    None => frame.posed.get(k).copied().flatten(),
+                }));
+                Some(&s.skinned[..])
+            }
+        };
+        let posed = if !skinned_posed.is_empty() {
+            &skinned_posed[..]
+        } else if frame.posed.is_empty() {
+            &s.unposed[..]
+        } else {
+            frame.posed
+        };
+        self.binding.deform_harmonic_rhs(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
+    }
+
+    /// A frame's work after its solves: the output points (and gradients),
+    /// then blend shapes in the `after` mode mapped by each vertex's
+    /// deformation gradient.
+    fn finish(
+        &self,
+        frame: &Frame<'_>,
+        s: &mut Scratch,
+        out: &mut [[f64; 3]],
+        gradients: Option<&mut [[f64; 9]]>,
+    ) -> Result<()> {
+        let n = self.binding.n_vertices();
+        let Scratch { ws, gradients: own, sculpted, skinned, .. } = s;
+        // The rest pose `stage` gave the binding.
+        let rest = if self.cage.is_some() || (self.rig.is_some() && frame.joint_transforms.is_some()) {
+            Some(&skinned[..])
+        } else if self.active_weights(frame).is_some() && frame.blend_shape_mode == BlendShapeMode::Before {
+            Some(&sculpted[..])
+        } else {
+            frame.rest
+        };
+        let after = self.active_weights(frame).filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
+        match (after, gradients) {
+            (Some(w), Some(g)) => {
+                self.binding.deform_output(rest, ws, out, Some(&mut *g))?;
+                self.shapes.add_deformed(w, g, out)
+            }
+            (Some(w), None) => {
+                own.resize(n, [0.0; 9]);
+                self.binding.deform_output(rest, ws, out, Some(own))?;
+                self.shapes.add_deformed(w, own, out)
+            }
+            (None, g) => self.binding.deform_output(rest, ws, out, g),
+        }
+    }
+
+    /// The frame's blend-shape weights when they do anything (some shape, a nonzero weight).
+    fn active_weights<'f>(&self, frame: &Frame<'f>) -> Option<&'f [f64]> {
+        frame.blend_shape_weights.filter(|w| !self.shapes.is_empty() && w.iter().any(|&x| x != 0.0))
+    }
+
+    /// The workspaces of a group of frames, reused when one is free.
+    fn take_batch(&self) -> Batch {
+        let reused = self.batches.lock().unwrap_or_else(|e| e.into_inner()).pop();
+        reused.unwrap_or_default()
+    }
+
+    fn give_batch(&self, b: Batch) {
+        let mut pool = self.batches.lock().unwrap_or_else(|e| e.into_inner());
+        if pool.len() < KEEP_WORKSPACES {
+            pool.push(b);
+        }
     }
 
     /// A workspace for one frame, reused from earlier frames when one is free.

@@ -39,8 +39,8 @@ pub use cancel::Cancel;
 pub use closest_point::{ClosestPointBvh, Hit};
 pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
 pub use deformer::{
-    BlendShapeMode, CageInput, CurvenetInput, Deformer, DeformerInput, DeformerOptions, FlexibleStats, Frame,
-    MeshInput, Rig,
+    BatchError, BlendShapeMode, CageInput, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
+    DeformerOptions, FlexibleStats, Frame, FrameOut, MAX_BATCH_FRAMES, MeshInput, Rig,
 };
 pub use error::{Error, Result};
 pub use mesh::PolyMesh;

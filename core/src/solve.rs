@@ -53,6 +53,8 @@ pub struct Workspace {
     rest_frames: Vec<Vec<[ScaledFrame; 2]>>,
     rest_cut: Vec<DVec3>,
     rest_corner_r: Vec<DVec3>,
+    /// Whether the frame in progress brought its own rest pose.
+    rest_mode: bool,
     rest_sample_offset: Vec<DVec3>,
     rest_crossing_offset: Vec<DVec3>,
     // Adjustment state (used when a frame brings adjustments): per curvenet
@@ -83,6 +85,7 @@ impl Binding {
             rest_frames: self.layouts.iter().map(|l| vec![[zero_frame; 2]; l.n_segments()]).collect(),
             rest_cut: vec![DVec3::ZERO; self.cut.n_vertices()],
             rest_corner_r: vec![DVec3::ZERO; self.cut.n_halfedges()],
+            rest_mode: false,
             rest_sample_offset: vec![DVec3::ZERO; self.sample_offset.len()],
             rest_crossing_offset: vec![DVec3::ZERO; self.crossings.len()],
             adjusted: self.layouts.iter().map(|l| vec![[0.0; 3]; l.sampling().n_points()]).collect(),
@@ -116,6 +119,19 @@ impl Binding {
         out: &mut [[f64; 3]],
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
+        self.deform_harmonic_rhs(input, ws, out.len())?;
+        // Harmonic solve for f_v (line 6, Eq. 4).
+        self.solve_harmonic(ws);
+        self.deform_poisson_rhs(ws);
+        // Poisson solve for x_v (line 9, Eq. 5).
+        self.solve_poisson(ws);
+        self.deform_output(input.rest, ws, out, gradients)
+    }
+
+    /// A frame up to its first solve: checks, the rest pose, the curvenet
+    /// deformation, the constraint rows and the harmonic right-hand side
+    /// (in `ws.rhs9`). `n_out`: the length of the caller's output.
+    pub(crate) fn deform_harmonic_rhs(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch {
@@ -124,8 +140,8 @@ impl Binding {
                 got: posed.len(),
             });
         }
-        if out.len() != self.n_vertices() {
-            return Err(Error::CountMismatch { what: "output points", expected: self.n_vertices(), got: out.len() });
+        if n_out != self.n_vertices() {
+            return Err(Error::CountMismatch { what: "output points", expected: self.n_vertices(), got: n_out });
         }
         if let Some(rest) = input.rest {
             if rest.len() != self.n_vertices() {
@@ -180,10 +196,11 @@ impl Binding {
             let slots = range.slot as usize..range.slot as usize + layout.constraints().len();
             constraint_gradients_into(layout.constraints(), &ws.gradients[k], &mut ws.slot_f[slots])?;
         }
-        let (sample_offset, crossing_offset, corner_r) = if rest_mode {
-            (&ws.rest_sample_offset[..], &ws.rest_crossing_offset[..], &ws.rest_corner_r[..])
+        ws.rest_mode = rest_mode;
+        let (sample_offset, crossing_offset) = if rest_mode {
+            (&ws.rest_sample_offset[..], &ws.rest_crossing_offset[..])
         } else {
-            (&self.sample_offset[..], &self.crossing_offset[..], &self.corner_r[..])
+            (&self.sample_offset[..], &self.crossing_offset[..])
         };
         // Slot rows: F and p = q − F (q̌ − p̌) (line 8).
         for (r, f) in ws.slot_f.iter().enumerate() {
@@ -210,11 +227,16 @@ impl Binding {
         if let Some((r, _)) = ws.xc.iter().enumerate().find(|(_, p)| !p.iter().all(|x| x.is_finite())) {
             return Err(Error::NonFinite { what: "constraint position", index: r, value: ws.xc[r] });
         }
-        // Harmonic solve for f_v (line 6, Eq. 4).
+        // The harmonic right-hand side for f_v (line 6, Eq. 4).
         ws.rhs9.iter_mut().for_each(|x| *x = [0.0; 9]);
         self.b.mul_add(&ws.fc, &mut ws.rhs9, -1.0);
-        self.solve_in_place(&mut ws.rhs9, &mut ws.work9);
-        // y_h via per-cut-face gradients (line 7) and the Poisson right-hand side.
+        Ok(())
+    }
+
+    /// After the harmonic solve (f_v in `ws.rhs9`): y_h via per-cut-face
+    /// gradients (line 7) and the Poisson right-hand side (in `ws.rhs3`).
+    pub(crate) fn deform_poisson_rhs(&self, ws: &mut Workspace) {
+        let corner_r = if ws.rest_mode { &ws.rest_corner_r[..] } else { &self.corner_r[..] };
         ws.rhs3.iter_mut().for_each(|x| *x = [0.0; 3]);
         self.b.mul_add(&ws.xc, &mut ws.rhs3, -1.0);
         for f in 0..self.cut.n_faces() as u32 {
@@ -246,11 +268,20 @@ impl Binding {
                 }
             }
         }
-        // Poisson solve for x_v (line 9, Eq. 5).
-        self.solve_in_place(&mut ws.rhs3, &mut ws.work3);
+    }
+
+    /// After the Poisson solve (x_v in `ws.rhs3`): the output. `rest` is
+    /// the frame's rest pose (the one [`Self::deform_harmonic_rhs`] took).
+    pub(crate) fn deform_output(
+        &self,
+        rest: Option<&[[f64; 3]]>,
+        ws: &Workspace,
+        out: &mut [[f64; 3]],
+        gradients: Option<&mut [[f64; 9]]>,
+    ) -> Result<()> {
         // Output: unknowns solved, curvenet vertices the mean of their
         // constrained corners, untouched vertices at the rest pose.
-        match input.rest {
+        match rest {
             Some(rest) => out.copy_from_slice(rest),
             None => {
                 for (v, o) in out.iter_mut().enumerate() {
@@ -402,5 +433,68 @@ impl Workspace {
             + bytes(&self.rest_corner_r)
             + bytes(&self.rest_sample_offset)
             + bytes(&self.rest_crossing_offset)
+    }
+}
+
+/// The multi-frame solve's access to a frame's right-hand sides: the
+/// harmonic system's 9 columns and the Poisson system's 3, per unknown.
+impl Workspace {
+    pub(crate) fn harmonic_rows(&mut self) -> &mut [[f64; 9]] {
+        &mut self.rhs9
+    }
+    pub(crate) fn poisson_rows(&mut self) -> &mut [[f64; 3]] {
+        &mut self.rhs3
+    }
+}
+
+impl Binding {
+    /// Copies one frame's right-hand side `src` (original unknown order)
+    /// into columns `slot * C .. (slot + 1) * C` of `rows`, a block of
+    /// `width` interleaved columns in the factor's row order.
+    pub(crate) fn gather_permuted<const C: usize>(
+        &self,
+        src: &[[f64; C]],
+        rows: &mut [f64],
+        width: usize,
+        slot: usize,
+    ) {
+        let c0 = slot * C;
+        for (row, &orig) in rows.chunks_exact_mut(width).zip(self.factor.permutation()) {
+            row[c0..c0 + C].copy_from_slice(&src[orig as usize]);
+        }
+    }
+
+    /// The inverse of [`Self::gather_permuted`]: columns `slot * C ..` of
+    /// `rows` back into one frame's `dst` (original unknown order).
+    pub(crate) fn scatter_permuted<const C: usize>(
+        &self,
+        rows: &[f64],
+        width: usize,
+        slot: usize,
+        dst: &mut [[f64; C]],
+    ) {
+        let c0 = slot * C;
+        for (row, &orig) in rows.chunks_exact(width).zip(self.factor.permutation()) {
+            dst[orig as usize].copy_from_slice(&row[c0..c0 + C]);
+        }
+    }
+
+    /// Solves `VᵀL_hV X = B` for `width` interleaved columns in the
+    /// factor's row order ([`crate::cholesky::Cholesky::solve_permuted`]).
+    pub(crate) fn solve_permuted(&self, width: usize, rows: &mut [f64]) {
+        if self.n_unknowns() > 0 {
+            self.factor.solve_permuted(width, rows);
+        }
+    }
+}
+
+impl Binding {
+    /// The harmonic solve of one frame ([`Self::deform`]'s first solve).
+    pub(crate) fn solve_harmonic(&self, ws: &mut Workspace) {
+        self.solve_in_place(&mut ws.rhs9, &mut ws.work9);
+    }
+    /// The Poisson solve of one frame ([`Self::deform`]'s second solve).
+    pub(crate) fn solve_poisson(&self, ws: &mut Workspace) {
+        self.solve_in_place(&mut ws.rhs3, &mut ws.work3);
     }
 }

@@ -36,6 +36,74 @@ static GLOBAL: Counting = Counting;
 fn per_frame_evaluation_does_not_allocate() {
     curvenet_evaluation();
     whole_frame_solve();
+    frames_in_groups();
+}
+
+/// Frames solved in groups (`Deformer::frames`: posed pools, a rest pose,
+/// Curvenet Adjustments, blend shapes in both modes, gradients asked for or
+/// not) allocate nothing once a group of as many frames has been solved.
+fn frames_in_groups() {
+    use curvenet_core::blend_shapes::BlendShape;
+    use curvenet_core::{
+        BlendShapeMode, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, FrameOut, MeshInput,
+    };
+    let (mesh, pts) = plane(3.0, 23);
+    let b = grid(0.05);
+    let counts: Vec<u32> = mesh.face_vertex_counts().collect();
+    let nets = [CurvenetInput { splines: &b.splines, pool: &b.points, sample_density: 5.0 }];
+    let n = pts.len();
+    let shape = BlendShape::new(n, (0..n).map(|i| [0.0, 0.0, 0.001 * (i % 5) as f64]).collect(), None, vec![]).unwrap();
+    let input = DeformerInput {
+        mesh: MeshInput {
+            face_vertex_counts: &counts,
+            face_vertex_indices: mesh.face_vertex_indices(),
+            projection_points: &pts,
+        },
+        curvenets: &nets,
+        blend_shapes: vec![shape],
+        skinning: None,
+        cage: None,
+        options: DeformerOptions::default(),
+    };
+    let deformer = Deformer::new(&input).unwrap();
+    let r = rotation([0.2, 1.0, 0.3], 0.7);
+    let pose: Vec<[f64; 3]> = b.points.iter().map(|&p| apply(&r, p)).collect();
+    let rest: Vec<[f64; 3]> = pts.iter().map(|&p| [p[0], p[1], 0.1 * p[0] * p[0]]).collect();
+    let knot = deformer.binding().layouts()[0].sampling().knot_point(0);
+    let adjustments = [Adjustment::new(0, knot).with_translate([0.0, 0.0, 0.05])];
+    let posed = [Some(pose.as_slice())];
+    let weights = [0.8];
+    let frames = [
+        Frame { posed: &posed, ..Frame::default() },
+        Frame { rest: Some(&rest), adjustments: &adjustments, ..Frame::default() },
+        Frame { posed: &posed, blend_shape_weights: Some(&weights), ..Frame::default() },
+        Frame {
+            posed: &posed,
+            rest: Some(&rest),
+            blend_shape_weights: Some(&weights),
+            blend_shape_mode: BlendShapeMode::Before,
+            ..Frame::default()
+        },
+    ];
+    let mut points = vec![vec![[0.0; 3]; n]; frames.len()];
+    let mut grads = vec![[0.0; 9]; n];
+    let (first, rest_points) = points.split_first_mut().unwrap();
+    let mut outs: Vec<FrameOut<'_>> = std::iter::once(FrameOut { points: first, gradients: Some(&mut grads) })
+        .chain(rest_points.iter_mut().map(|p| FrameOut { points: p, gradients: None }))
+        .collect();
+    // Warm-up: the group's workspaces, each with the buffers its frames' modes need.
+    deformer.frames(&frames, &mut outs).unwrap();
+    deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for _ in 0..3 {
+        deformer.frames(&frames, &mut outs).unwrap();
+        deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
+    }
+    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(after - before, 0, "Deformer::frames allocated");
+    for out in &outs {
+        assert!(out.points.iter().zip(&pts).any(|(o, p)| (o[2] - p[2]).abs() > 1e-3), "a frame did not move the mesh");
+    }
 }
 
 /// A whole frame (`Binding::deform`, with and without a rest pose, with and

@@ -356,3 +356,39 @@ fn usd_core_reads_the_bake_composed_over_its_input_as_the_in_process_solve() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Frames are solved in groups (`--batch-frames K`, one multi-frame solve
+/// per group of one mesh): the output's bytes do not depend on K nor on the
+/// number of solve threads, on the shipped shot (blend shapes after the
+/// solve), the skinned one (a rest pose per frame, blend shapes before) and
+/// the adjusted one (Curvenet Adjustments); 24 frames, so K = 8 and 3 make
+/// several groups and K = 32 (the largest) one shorter than itself.
+#[test]
+fn bake_bytes_do_not_depend_on_the_group_size_or_the_thread_count() {
+    let dir = temp_dir("batch");
+    for shot in [SHOT, "fixtures/shots/hand_rigged/shot.usda", "fixtures/shots/hand_adjusted/shot.usda"] {
+        let mut first: Option<Vec<u8>> = None;
+        for (k, threads) in [("1", "1"), ("3", "2"), ("8", "1"), ("8", "2"), ("32", "2")] {
+            let out = dir.join(format!("k{k}_t{threads}.usda"));
+            let run = Command::new(env!("CARGO_BIN_EXE_curvenet"))
+                .args(["bake", shot, "--out", out.to_str().unwrap(), "--frames", "1-24", "--quiet"])
+                .args(["--batch-frames", k])
+                .env("RAYON_NUM_THREADS", threads)
+                .current_dir(repo())
+                .output()
+                .unwrap();
+            assert!(run.status.success(), "{shot} K={k}: {}", stderr(&run));
+            let bytes = std::fs::read(&out).unwrap();
+            match &first {
+                None => first = Some(bytes),
+                Some(f) => assert!(f == &bytes, "{shot}: K={k} on {threads} thread(s) wrote different bytes than K=1"),
+            }
+        }
+    }
+    // K is 1..=32.
+    for k in ["0", "33"] {
+        let run = bake(SHOT, &dir.join("bad.usda"), &["--batch-frames", k]);
+        assert_eq!(run.status.code(), Some(2), "--batch-frames {k}: {}", stderr(&run));
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

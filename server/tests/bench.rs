@@ -64,6 +64,22 @@ fn bench_json_reports_the_hand_1k4_fixture() {
     ] {
         positive_finite(m, key);
     }
+    // Frames in groups of K = 1..32 (issue 19): every K measured, the best named.
+    let batch = m["batch"].as_array().expect("a `batch` array");
+    let ks: Vec<u64> = batch.iter().map(|r| count(r, "k")).collect();
+    assert_eq!(ks, [1, 2, 4, 8, 16, 32]);
+    for r in batch {
+        for key in ["per_frame_ms", "per_frame_over_reference", "frames_per_s"] {
+            positive_finite(r, key);
+        }
+    }
+    let best = count(m, "batch_k");
+    let row = batch.iter().find(|r| count(r, "k") == best).expect("batch_k is a measured K");
+    assert_eq!(m["batch_frames_per_s"], row["frames_per_s"]);
+    assert!(batch.iter().all(|r| r["frames_per_s"].as_f64() <= m["batch_frames_per_s"].as_f64()));
+    let over = positive_finite(m, "batch_over_reference");
+    let want = row["per_frame_ms"].as_f64().unwrap() / m["reference_ms"].as_f64().unwrap();
+    assert!((over - want).abs() <= 1e-9 * want, "batch_over_reference {over}, per frame / reference {want}");
     assert!(m["solve_min_ms"].as_f64() <= m["solve_ms"].as_f64());
     assert!(m["solve_ms"].as_f64() <= m["solve_max_ms"].as_f64());
     // No targets are set for the 1.4k hand; the frames stay close to the mesh in the neutral pose.

@@ -1,4 +1,4 @@
-//! `curvenet bake INPUT --out OUTPUT [--frames A-B] [--threads N] [--quiet]`:
+//! `curvenet bake INPUT --out OUTPUT [--frames A-B] [--threads N] [--batch-frames K] [--quiet]`:
 //! deforms every mesh of a shot over a frame range and writes the points as
 //! an override layer (schema/README.md, "Bake output").
 //!
@@ -11,10 +11,14 @@
 //! 2. Frames go in chunks: the reading thread (the USD stage is not `Send`)
 //!    reads a chunk's posed pools, rest poses and blend-shape weights and
 //!    checks they are finite,
-//!    while the previous chunk solves on the thread pool, every (frame, mesh)
-//!    pair an independent task: one `Deformer::frame` call, which owns the
-//!    per-frame policy (workspaces, skinning, blend shapes, adjustments). Results keep
-//!    frame order; the first failing frame in time order is reported.
+//!    while the previous chunk solves on the thread pool, every group of up
+//!    to K (`--batch-frames`) consecutive frames of one mesh an independent
+//!    task: one `Deformer::frames` call, which owns the per-frame policy
+//!    (workspaces, skinning, blend shapes, adjustments) and solves the
+//!    group's frames with one sweep of each triangular solve (bit for bit
+//!    what frame-by-frame solves give, so the output does not depend on K
+//!    or the thread count). Results keep frame order; the first failing
+//!    frame in time order is reported, by its time code.
 //!    A frame of a mesh is, in order: skinning of the mesh's points by the
 //!    frame's joint transforms (blend shapes added first, UsdSkel's order,
 //!    unless `curvenet:blendShapeOrder = "afterSolve"`) → the rest pose;
@@ -37,7 +41,7 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use curvenet_core::skinning::Mat4;
-use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Frame};
+use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Frame, FrameOut};
 use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
 use curvenet_schema::{AdjustmentData, CageData, CurvenetData, MeshData};
 use rayon::prelude::*;
@@ -49,6 +53,8 @@ use super::{CliError, CliResult, net_list};
 const MAX_CHUNK_FRAMES: usize = 256;
 /// Budget for one chunk's inputs (posed pools and rest poses, f64).
 const CHUNK_BYTES: usize = 256 << 20;
+/// Frames of one mesh solved together by default (`--batch-frames`).
+const DEFAULT_BATCH_FRAMES: u32 = curvenet_core::DEFAULT_BATCH_FRAMES as u32;
 /// Longest frame range accepted (guards against a typo like 1-1000000000).
 const MAX_FRAMES: i64 = 1_000_000;
 
@@ -91,6 +97,12 @@ pub struct Args {
     /// Worker threads for the solves (default: one per CPU).
     #[arg(long)]
     pub threads: Option<NonZeroUsize>,
+    /// Frames of one mesh solved together: their right-hand sides share one
+    /// sweep of each triangular solve, so the factor is read once per K
+    /// frames (the output does not depend on K). At most 32.
+    #[arg(long, value_name = "K", default_value_t = DEFAULT_BATCH_FRAMES,
+        value_parser = clap::value_parser!(u32).range(1..=curvenet_core::MAX_BATCH_FRAMES as i64))]
+    pub batch_frames: u32,
     /// No progress line and no summary.
     #[arg(long, short)]
     pub quiet: bool,
@@ -225,10 +237,10 @@ pub fn run(args: &Args) -> CliResult {
                 _ => None,
             };
             let cage = stage.cage(&m)?;
-            Ok((m, n, r, rig, order, bind_points, cage))
+            Ok(Read { mesh: m, nets: n, reads_rest: r, rig, order, bind_points, cage })
         })
         .collect::<CliResult<Vec<_>>>()?;
-    for (m, _, _, rig, _, _, _) in &inputs {
+    for Read { mesh: m, rig, .. } in &inputs {
         if let Some(rig) = rig
             && let Some(&p) = rig.unnormalized.first()
         {
@@ -242,13 +254,8 @@ pub fn run(args: &Args) -> CliResult {
             );
         }
     }
-    let jobs: Vec<MeshJob> = pool.install(|| {
-        inputs
-            .into_par_iter()
-            .zip(adjustments)
-            .map(|((m, n, r, rig, order, bind_points, cage), a)| bind(m, n, r, rig, order, bind_points, a, cage))
-            .collect::<CliResult<_>>()
-    })?;
+    let jobs: Vec<MeshJob> = pool
+        .install(|| inputs.into_par_iter().zip(adjustments).map(|(read, a)| bind(read, a)).collect::<CliResult<_>>())?;
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
         for w in job.deformer.binding().warnings() {
@@ -266,7 +273,10 @@ pub fn run(args: &Args) -> CliResult {
         })
         .sum();
     let threads = pool.current_num_threads();
-    let chunk = (4 * threads).min(MAX_CHUNK_FRAMES).min((CHUNK_BYTES / per_frame_bytes.max(1)).max(1));
+    // Each thread gets about two groups of --batch-frames per chunk.
+    let batch = args.batch_frames as usize;
+    let chunk =
+        (4 * threads).max(2 * threads * batch).min(MAX_CHUNK_FRAMES).min((CHUNK_BYTES / per_frame_bytes.max(1)).max(1));
     let progress = Progress::new(frames.len(), jobs.len(), args.quiet);
     let solve_ns = AtomicU64::new(0);
     let mut baked: Vec<Vec<(f64, Vec<[f32; 3]>)>> = jobs.iter().map(|_| Vec::with_capacity(frames.len())).collect();
@@ -277,7 +287,7 @@ pub fn run(args: &Args) -> CliResult {
     read_time += t_read.elapsed();
     while let Some(current) = next.take() {
         let (solved, read) = std::thread::scope(|s| {
-            let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, &solve_ns, &progress)));
+            let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, batch, &solve_ns, &progress)));
             let t_read = Instant::now();
             let read = chunks.next().map(|c| read_chunk(&stage, &jobs, c)).transpose();
             read_time += t_read.elapsed();
@@ -387,16 +397,19 @@ pub(super) fn frames(
     Ok(times)
 }
 
-fn bind(
+/// What the stage's thread reads for one mesh before it is bound.
+struct Read {
     mesh: MeshData,
     nets: Vec<CurvenetData>,
     reads_rest: bool,
     rig: Option<MeshRig>,
     order: BlendShapeOrder,
     bind_points: Option<Vec<[f64; 3]>>,
-    adjustments: Vec<Vec<AdjustmentData>>,
     cage: Option<CageData>,
-) -> CliResult<MeshJob> {
+}
+
+fn bind(read: Read, adjustments: Vec<Vec<AdjustmentData>>) -> CliResult<MeshJob> {
+    let Read { mesh, nets, reads_rest, rig, order, bind_points, cage } = read;
     // A skinned mesh reads its points per frame only when they are animated.
     let reads_rest = match &rig {
         Some(_) => !mesh.rest_sample_times.is_empty(),
@@ -473,52 +486,74 @@ fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: 
     }
 }
 
-/// Solves every (frame, mesh) pair of a chunk in parallel, in order.
+/// Solves every (frame, mesh) pair of a chunk, in groups of up to `batch`
+/// frames of one mesh (one multi-frame solve each, `Deformer::frames`),
+/// the groups in parallel; answers per frame, per mesh, in order.
 fn solve_chunk(
     jobs: &[MeshJob],
     chunk: &[FrameData],
+    batch: usize,
     solve_ns: &AtomicU64,
     progress: &Progress,
 ) -> CliResult<Vec<Vec<Vec<[f32; 3]>>>> {
     let n = jobs.len();
-    let solved: Vec<CliResult<Vec<[f32; 3]>>> = (0..chunk.len() * n)
+    let groups = chunk.len().div_ceil(batch);
+    let solved: Vec<CliResult<Vec<Vec<[f32; 3]>>>> = (0..groups * n)
         .into_par_iter()
         .map(|item| {
-            let (frame, k) = (&chunk[item / n], item % n);
-            let r = solve(&jobs[k], frame.time, &frame.meshes[k], solve_ns);
-            progress.tick();
+            let (g, k) = (item / n, item % n);
+            let frames = &chunk[g * batch..((g + 1) * batch).min(chunk.len())];
+            let r = solve_group(&jobs[k], k, frames, solve_ns);
+            progress.tick(frames.len());
             r
         })
         .collect();
-    let mut solved = solved.into_iter();
-    (0..chunk.len()).map(|_| solved.by_ref().take(n).collect()).collect()
+    // Per group (mesh fastest), per frame of the group → per frame, per mesh.
+    let mut out: Vec<Vec<Vec<[f32; 3]>>> = (0..chunk.len()).map(|_| Vec::with_capacity(n)).collect();
+    for (item, r) in solved.into_iter().enumerate() {
+        let g = item / n;
+        for (j, points) in r?.into_iter().enumerate() {
+            out[g * batch + j].push(points);
+        }
+    }
+    Ok(out)
 }
 
-fn solve(job: &MeshJob, t: f64, input: &MeshFrame, solve_ns: &AtomicU64) -> CliResult<Vec<[f32; 3]>> {
+/// Solves mesh `k` of `frames` in one multi-frame solve; an error names the frame.
+fn solve_group(job: &MeshJob, k: usize, frames: &[FrameData], solve_ns: &AtomicU64) -> CliResult<Vec<Vec<[f32; 3]>>> {
     let t0 = Instant::now();
-    let posed: Vec<Option<&[[f64; 3]]>> = input.posed.iter().map(|p| p.as_deref()).collect();
-    let frame = Frame {
-        posed: &posed,
-        // A skinned mesh's points before skinning: the frame's, else its bind pose.
-        rest: input.rest.as_deref().or(job.bind_points.as_deref()),
-        blend_shape_weights: (!input.weights.is_empty()).then_some(&input.weights[..]),
-        blend_shape_mode: job.mode,
-        adjustments: &input.adjustments,
-        joint_transforms: input.transforms.as_deref(),
-        ..Frame::default()
-    };
-    let cage = job.cage.as_ref().map(|c| c.frame(Some(t)));
-    let mut out = vec![[0.0; 3]; job.deformer.n_vertices()];
-    let frame = match &cage {
-        Some(c) => Frame { rest_cage: c.rest_cage(), posed_cage_offsets: c.posed_cage_offsets(), ..frame },
-        None => frame,
-    };
-    job.deformer.frame(&frame, &mut out, None).map_err(|source| CliError::Core {
-        context: format!("frame {t}, {} (deformed by {})", job.mesh.path, net_list(&job.nets)),
-        source,
+    let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
+        frames.iter().map(|f| f.meshes[k].posed.iter().map(|p| p.as_deref()).collect()).collect();
+    // The cage's edits of each frame, evaluated off the stage's thread.
+    let cages: Vec<Option<curvenet_schema::CageFrame<'_>>> =
+        frames.iter().map(|f| job.cage.as_ref().map(|c| c.frame(Some(f.time)))).collect();
+    let inputs: Vec<Frame<'_>> = frames
+        .iter()
+        .zip(&posed)
+        .zip(&cages)
+        .map(|((f, posed), cage)| {
+            let input = &f.meshes[k];
+            Frame {
+                posed,
+                // A skinned mesh's points before skinning: the frame's, else its bind pose.
+                rest: input.rest.as_deref().or(job.bind_points.as_deref()),
+                blend_shape_weights: (!input.weights.is_empty()).then_some(&input.weights[..]),
+                blend_shape_mode: job.mode,
+                adjustments: &input.adjustments,
+                joint_transforms: input.transforms.as_deref(),
+                rest_cage: cage.as_ref().and_then(|c| c.rest_cage()),
+                posed_cage_offsets: cage.as_ref().and_then(|c| c.posed_cage_offsets()),
+            }
+        })
+        .collect();
+    let mut points = vec![vec![[0.0; 3]; job.deformer.n_vertices()]; frames.len()];
+    let mut outs: Vec<FrameOut<'_>> = points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+    job.deformer.frames(&inputs, &mut outs).map_err(|e| CliError::Core {
+        context: format!("frame {}, {} (deformed by {})", frames[e.frame].time, job.mesh.path, net_list(&job.nets)),
+        source: e.error,
     })?;
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-    Ok(out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect())
+    Ok(points.iter().map(|out| out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect()).collect())
 }
 
 /// The progress line on a terminal (stderr), redrawn at most every 100 ms.
@@ -539,8 +574,9 @@ impl Progress {
         Self { frames, meshes, done: AtomicUsize::new(0), start, last_draw: draw.then(|| Mutex::new(start)) }
     }
 
-    fn tick(&self) {
-        let done = self.done.fetch_add(1, Ordering::Relaxed) + 1;
+    /// `frames` more (frame, mesh) pairs solved.
+    fn tick(&self, frames: usize) {
+        let done = self.done.fetch_add(frames, Ordering::Relaxed) + frames;
         let Some(last) = &self.last_draw else { return };
         let Ok(mut last) = last.try_lock() else { return };
         if last.elapsed() < Duration::from_millis(100) && done < self.frames * self.meshes {

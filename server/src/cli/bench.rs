@@ -54,6 +54,10 @@
 //!   pool (`--threads`, default all cores), one `Deformer::frame` per task
 //!   (each takes a workspace from the deformer's pool), against the same
 //!   pool with one thread; medians of 3 runs of `max(frames, 8 × threads)` frames.
+//! - **Frames in groups** (bench_batch.rs): the same poses through
+//!   `Deformer::frames` in groups of K = 1, 2, 4, 8, 16, 32 (one sweep of
+//!   each triangular solve per group): per-frame time on one thread over
+//!   `reference_ms`, and frames/s on all threads; the best K by frames/s.
 //! - **Corpus** (unless `--no-corpus`): every stage in `<fixtures>/corpus`,
 //!   its first curvenet-deformed mesh bound `--repeats` times and
 //!   `--corpus-frames` frames (default 10) of the same kind of pose solved:
@@ -65,8 +69,9 @@
 //! [...], "corpus": [...]}`, one entry per hand mesh with (at least) `mesh`,
 //! `vertices`, `faces`, `knots`, `samples`, `cutting_ms`, `factor_ms`,
 //! `solve_ms`, `binding_ms`, all the other measurements under their field
-//! names (see `MeshBench`), and `targets` (null for meshes the issue sets
-//! none for); one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
+//! names (see `MeshBench`), `targets` (null for meshes the issue sets
+//! none for), `batch` (per K: `k`, `per_frame_ms`, `per_frame_over_reference`,
+//! `frames_per_s`), `batch_k`, `batch_frames_per_s` and `batch_over_reference`; one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -230,6 +235,9 @@ struct MeshBench {
     max_displacement: f64,
     warnings: Vec<String>,
     targets: Option<Targets>,
+    /// Frames in groups of K (`batch`, `batch_k`, `batch_frames_per_s`, `batch_over_reference`; bench_batch.rs).
+    #[serde(flatten)]
+    batch: super::bench_batch::BatchFigures,
 }
 
 #[derive(Serialize, Clone, Copy)]
@@ -500,6 +508,7 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
     let solve_ms = deform_t.wall();
     let binding_ms = median(binding_wall);
     let (tri9_ms, tri3_ms, eval_ms, reference_ms) = (tri9_t.wall(), tri3_t.wall(), eval_t.wall(), reference_t.wall());
+    let batch = super::bench_batch::bench_batches(&deformer, &inputs, frames, threads, reference_ms)?;
     let solve_cpu = deform_t.cpu();
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
     let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);
@@ -568,6 +577,7 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         max_displacement,
         warnings: binding.warnings().iter().map(|w| w.to_string()).collect(),
         targets,
+        batch,
     })
 }
 
@@ -993,6 +1003,11 @@ fn text_report(r: &Report) -> String {
             m.mesh, m.serial_frames_per_s, m.parallel_frames_per_s, m.parallel_speedup
         );
     }
+    let _ = writeln!(s);
+    s += &super::bench_batch::text_table(
+        r.meshes.iter().map(|m| (m.mesh.as_str(), m.solve_ms, m.parallel_frames_per_s, &m.batch)),
+        r.threads,
+    );
     let _ = writeln!(s);
     let _ = writeln!(s, "Frames (relative to the bounding-box diagonal)");
     for m in &r.meshes {

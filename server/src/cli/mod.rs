@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod bench;
+mod bench_batch;
 pub mod draft;
 pub mod inspect;
 pub mod rig;

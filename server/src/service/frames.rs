@@ -2,7 +2,8 @@
 //! encoding `frames:batch` shares, batches.rs). A frame is parsed (JSON or
 //! binary.rs) into a [`Frame`], checked against the binding (counts,
 //! finiteness, topology), solved by `curvenet_core::Deformer::frame` (its
-//! workspace pool, blend shapes in either mode, the rest pose) and encoded
+//! workspace pool, blend shapes in either mode, the rest pose; a batch's
+//! frames in groups by `Deformer::frames`, [`solve_group`]) and encoded
 //! back in the request's form.
 
 use std::sync::Arc;
@@ -375,6 +376,64 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     }
     let knot_orientations = if frame.orientations { Some(orientations(entry, frame)?) } else { None };
     Ok(Solved { points, gradients, solve_ms: t0.elapsed().as_secs_f64() * 1e3, knot_orientations })
+}
+
+/// Solves validated frames together through
+/// `curvenet_core::Deformer::frames` (one sweep of each triangular solve
+/// for the group; the same results as [`solve`] frame by frame). Each
+/// frame's `solve_ms` is the group's time over its frames. An error names
+/// the frame by its index in `frames`. CPU-heavy: run it on the solve pool.
+pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usize, ServiceError)> {
+    let t0 = Instant::now();
+    let n = entry.binding().n_vertices();
+    let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
+        frames.iter().map(|f| f.posed.iter().map(|p| p.as_deref()).collect()).collect();
+    let inputs: Vec<curvenet_core::Frame<'_>> = frames
+        .iter()
+        .zip(&posed)
+        .map(|(frame, posed)| curvenet_core::Frame {
+            posed,
+            rest: frame.rest.as_deref(),
+            blend_shape_weights: frame.weights.as_deref(),
+            blend_shape_mode: match frame.mode {
+                BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
+                BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
+            },
+            adjustments: &frame.adjustments,
+            joint_transforms: frame.joint_transforms.as_deref(),
+            ..Default::default()
+        })
+        .collect();
+    let mut points = vec![vec![[0.0; 3]; n]; frames.len()];
+    let mut gradients: Vec<Option<Vec<[f64; 9]>>> =
+        frames.iter().map(|f| f.gradients.then(|| vec![[0.0; 9]; n])).collect();
+    let mut outs: Vec<curvenet_core::FrameOut<'_>> = points
+        .iter_mut()
+        .zip(gradients.iter_mut())
+        .map(|(p, g)| curvenet_core::FrameOut { points: p, gradients: g.as_deref_mut() })
+        .collect();
+    entry.deformer.frames(&inputs, &mut outs).map_err(|e| {
+        (e.frame, name_adjustment(ServiceError::core(e.error, Phase::Frame), &frames[e.frame].adjustments))
+    })?;
+    let solve_ms = t0.elapsed().as_secs_f64() * 1e3 / frames.len().max(1) as f64;
+    frames
+        .iter()
+        .zip(points.into_iter().zip(gradients))
+        .enumerate()
+        .map(|(i, (frame, (points, gradients)))| {
+            let checked = (|| {
+                finite_in_f32(&points, "points")?;
+                if let Some(g) = &gradients {
+                    finite_in_f32(g, "gradients")?;
+                }
+                if frame.orientations { orientations(entry, frame).map(Some) } else { Ok(None) }
+            })();
+            match checked {
+                Ok(knot_orientations) => Ok(Solved { points, gradients, solve_ms, knot_orientations }),
+                Err(e) => Err((i, e)),
+            }
+        })
+        .collect()
 }
 
 /// An error about adjustment `i` also names its curvenet (core's

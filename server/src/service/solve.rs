@@ -1,9 +1,10 @@
 //! The one solve helper: every route that solves frames (frames, batches,
 //! deform) goes through [`solve_frames`], which runs on the solve pool
 //! holding the request's [`Admission`]: read the frames → validate each
-//! against the binding → (batches) check the answer's size → solve each
-//! with `curvenet_core::Deformer::frame` (a batch's frames as many at once
-//! as it holds permits) → record the metrics → build the answer.
+//! against the binding → (batches) check the answer's size → solve them
+//! with `curvenet_core::Deformer::frames`, in groups of up to
+//! [`BATCH_FRAMES`] frames sharing one sweep of each triangular solve (a
+//! batch's groups as many at once as it holds permits) → record the metrics → build the answer.
 
 use std::sync::Arc;
 
@@ -14,6 +15,10 @@ use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
 use crate::frames::{self, Frame, Solved};
 use crate::state::AppState;
+
+/// Frames of one request solved together (`Deformer::frames`): the bake's
+/// default group size (core's measured default).
+const BATCH_FRAMES: usize = curvenet_core::DEFAULT_BATCH_FRAMES;
 
 /// How the frames of a request are named in its errors.
 #[derive(Debug, Clone, Copy)]
@@ -60,25 +65,27 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
             if let Numbering::Batch { max_bytes, json } = numbering {
                 check_batch_size(&entry, &frames, max_bytes, json)?;
             }
-            let solved: Vec<Solved> = if parallel > 1 && frames.len() > 1 {
-                let chunk = frames.len().div_ceil(parallel).max(1);
-                let entry = &entry;
-                let results: Vec<Result<Solved, ServiceError>> = frames
-                    .par_chunks(chunk)
-                    .enumerate()
-                    .flat_map_iter(|(c, part)| {
-                        part.iter()
-                            .enumerate()
-                            .map(move |(j, f)| frames::solve(entry, f).map_err(|e| numbering.name(c * chunk + j, e)))
-                    })
-                    .collect();
-                results.into_iter().collect::<Result<_, _>>()?
+            let solved: Vec<Solved> = if frames.len() == 1 {
+                // One frame (the interactive path): Deformer::frame.
+                vec![frames::solve(&entry, &frames[0]).map_err(|e| numbering.name(0, e))?]
             } else {
-                frames
-                    .iter()
-                    .enumerate()
-                    .map(|(i, f)| frames::solve(&entry, f).map_err(|e| numbering.name(i, e)))
-                    .collect::<Result<_, _>>()?
+                // Groups of up to BATCH_FRAMES frames (one multi-frame solve
+                // each), spread over the permits the request holds: no larger
+                // than an even share of the frames, so a small batch still
+                // spreads. Errors name the first failing frame in order.
+                let size = if parallel > 1 { frames.len().div_ceil(parallel) } else { BATCH_FRAMES };
+                let size = size.clamp(1, BATCH_FRAMES);
+                let solve = |(g, group): (usize, &[Frame])| {
+                    frames::solve_group(&entry, group).map_err(|(j, e)| numbering.name(g * size + j, e))
+                };
+                let groups: Vec<Vec<Solved>> = if parallel > 1 {
+                    let results: Vec<Result<Vec<Solved>, ServiceError>> =
+                        frames.par_chunks(size).enumerate().map(solve).collect();
+                    results.into_iter().collect::<Result<_, _>>()?
+                } else {
+                    frames.chunks(size).enumerate().map(solve).collect::<Result<_, _>>()?
+                };
+                groups.into_iter().flatten().collect()
             };
             for s in &solved {
                 metrics.solve_seconds.record(s.solve_ms / 1e3);

@@ -1,0 +1,181 @@
+//! Multi-frame solves (`Deformer::frames`, issue 19): a group of frames
+//! solved with one sweep of each triangular solve gives what solving them
+//! one by one (`Deformer::frame`) gives, on the 22k hand and a corpus mesh,
+//! with every frame feature that reaches the solves (posed pools, knot
+//! tracking to a rest pose, blend shapes in both modes, Curvenet
+//! Adjustments, gradients asked for or not), whatever the group size; a bad
+//! frame is named by its index.
+
+use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Error, Frame, FrameOut, Rotate};
+use curvenet_e2e::{bind_fixture, curvenet_inputs, deformer_input};
+
+/// A frame's inputs, owned.
+struct Case {
+    posed: Vec<Option<Vec<[f64; 3]>>>,
+    rest: Option<Vec<[f64; 3]>>,
+    weights: Option<Vec<f64>>,
+    mode: BlendShapeMode,
+    adjustments: Vec<Adjustment>,
+    gradients: bool,
+}
+
+/// A deformer of the fixture's first mesh with two blend shapes (one
+/// sparse with an inbetween, one dense), and frames using every feature.
+fn setup(rel: &str) -> (Deformer, Vec<Case>) {
+    let b = bind_fixture(rel);
+    let pts = &b.mesh.projection_points;
+    let n = pts.len();
+    let d = b.diagonal();
+    let inputs = curvenet_inputs(&b.nets);
+    let mut input = deformer_input(&b.mesh, &inputs);
+    let sparse: Vec<u32> = (0..n as u32).step_by(7).collect();
+    let offsets: Vec<[f64; 3]> = sparse.iter().map(|&v| [0.01 * d, 0.0, 0.002 * d * (v % 5) as f64]).collect();
+    let inbetween: Vec<[f64; 3]> = offsets.iter().map(|o| [0.4 * o[0], 0.1 * d * 0.01, o[2]]).collect();
+    input.blend_shapes = vec![
+        BlendShape::new(n, offsets, Some(sparse), vec![(0.5, inbetween)]).unwrap(),
+        BlendShape::new(n, pts.iter().map(|p| [0.0, 0.02 * p[0], -0.01 * p[1]]).collect(), None, vec![]).unwrap(),
+    ];
+    let deformer = Deformer::new(&input).unwrap();
+    // A smooth non-rigid pose of every curvenet, and a smooth rest pose.
+    let bend = |p: &[f64; 3], s: f64| {
+        [
+            p[0] + s * 0.03 * (p[1] / d * 5.0).sin() * d,
+            p[1] + s * 0.02 * (p[2] / d * 3.0).cos() * d,
+            p[2] * (1.0 + 0.05 * s),
+        ]
+    };
+    let posed = |s: f64| b.nets.iter().map(|net| Some(net.pool.iter().map(|p| bend(p, s)).collect())).collect();
+    let rest: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 0.02 * (p[0] / d * 4.0).sin() * d, p[2]]).collect();
+    let layout = &deformer.binding().layouts()[0];
+    let knot = layout.sampling().knot_point(layout.sampling().n_knots() / 2);
+    let adjust = vec![
+        Adjustment::new(0, knot)
+            .with_translate([0.01 * d, 0.0, 0.005 * d])
+            .with_rotate(Rotate::EulerXyz([5.0, 10.0, 0.0])),
+    ];
+    let case = |posed, rest: Option<&Vec<_>>, weights: Option<[f64; 2]>, mode, adjustments: &Vec<_>, gradients| Case {
+        posed,
+        rest: rest.cloned(),
+        weights: weights.map(|w| w.to_vec()),
+        mode,
+        adjustments: adjustments.clone(),
+        gradients,
+    };
+    let (after, before, none) = (BlendShapeMode::After, BlendShapeMode::Before, Vec::new());
+    let cases = vec![
+        case(posed(1.0), None, None, after, &none, true),
+        case(vec![None; b.nets.len()], Some(&rest), None, after, &none, false),
+        case(posed(0.5), None, Some([0.75, 0.3]), after, &none, true),
+        case(posed(-0.7), None, Some([0.75, 0.3]), after, &none, false),
+        case(posed(0.3), Some(&rest), Some([0.25, 1.0]), before, &none, true),
+        case(Vec::new(), None, Some([1.0, 0.0]), before, &adjust, false),
+        case(posed(0.8), Some(&rest), None, after, &adjust, true),
+        case(Vec::new(), None, None, after, &none, false),
+        case(posed(1.2), None, Some([0.0, 0.0]), after, &none, true),
+    ];
+    (deformer, cases)
+}
+
+fn frame<'a>(c: &'a Case, posed: &'a [Option<&'a [[f64; 3]]>]) -> Frame<'a> {
+    Frame {
+        posed,
+        rest: c.rest.as_deref(),
+        blend_shape_weights: c.weights.as_deref(),
+        blend_shape_mode: c.mode,
+        adjustments: &c.adjustments,
+        ..Default::default()
+    }
+}
+
+/// A frame's points and, when asked for, gradients.
+type Solved = (Vec<[f64; 3]>, Option<Vec<[f64; 9]>>);
+
+/// Largest difference over the largest magnitude.
+fn relative(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs())).max(f64::MIN_POSITIVE);
+    a.iter().zip(b).fold(0.0f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+fn check(rel: &str) {
+    let (deformer, cases) = setup(rel);
+    let n = deformer.n_vertices();
+    let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
+        cases.iter().map(|c| c.posed.iter().map(|p| p.as_deref()).collect()).collect();
+    let frames: Vec<Frame<'_>> = cases.iter().zip(&posed).map(|(c, p)| frame(c, p)).collect();
+    // One by one.
+    let single: Vec<Solved> = frames
+        .iter()
+        .zip(&cases)
+        .map(|(f, c)| {
+            let mut out = vec![[0.0; 3]; n];
+            let mut g = c.gradients.then(|| vec![[0.0; 9]; n]);
+            deformer.frame(f, &mut out, g.as_deref_mut()).unwrap();
+            (out, g)
+        })
+        .collect();
+    // The features did something: frames differ from each other and from the projection pose.
+    for (i, (out, _)) in single.iter().enumerate() {
+        let moved = relative(out.as_flattened(), deformer.projection_points().as_flattened());
+        assert!(moved > 1e-4 || i == 7, "{rel}: frame {i} moved the mesh by only {moved:e}");
+    }
+    assert!(relative(single[2].0.as_flattened(), single[3].0.as_flattened()) > 1e-4);
+    // In groups of every size from 1 to all of them (group sizes 4 and 9 leave a shorter last group).
+    for k in [1, 2, 3, 4, 5, 9] {
+        let mut points: Vec<Vec<[f64; 3]>> = vec![vec![[f64::NAN; 3]; n]; frames.len()];
+        let mut grads: Vec<Option<Vec<[f64; 9]>>> =
+            cases.iter().map(|c| c.gradients.then(|| vec![[f64::NAN; 9]; n])).collect();
+        let mut outs: Vec<FrameOut<'_>> = points
+            .iter_mut()
+            .zip(grads.iter_mut())
+            .map(|(p, g)| FrameOut { points: p, gradients: g.as_deref_mut() })
+            .collect();
+        for (group, outs) in frames.chunks(k).zip(outs.chunks_mut(k)) {
+            deformer.frames(group, outs).unwrap();
+        }
+        for (i, ((p, g), (sp, sg))) in points.iter().zip(&grads).zip(&single).enumerate() {
+            let e = relative(p.as_flattened(), sp.as_flattened());
+            assert!(e <= 1e-12, "{rel}: group size {k}, frame {i}: points differ by {e:e} (relative)");
+            if let (Some(g), Some(sg)) = (g, sg) {
+                let e = relative(g.as_flattened(), sg.as_flattened());
+                assert!(e <= 1e-12, "{rel}: group size {k}, frame {i}: gradients differ by {e:e} (relative)");
+            }
+        }
+    }
+}
+
+#[test]
+fn hand_22k_frames_in_groups_match_frames_one_by_one() {
+    check("hand/hand_22k.usdc");
+}
+
+#[test]
+fn corpus_frames_in_groups_match_frames_one_by_one() {
+    check("corpus/penguin.usda");
+}
+
+#[test]
+fn a_bad_frame_of_a_group_is_named_by_its_index() {
+    let (deformer, cases) = setup("corpus/penguin.usda");
+    let n = deformer.n_vertices();
+    let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
+        cases.iter().map(|c| c.posed.iter().map(|p| p.as_deref()).collect()).collect();
+    let mut frames: Vec<Frame<'_>> = cases.iter().zip(&posed).map(|(c, p)| frame(c, p)).collect();
+    let short = [0.5];
+    frames[4].blend_shape_weights = Some(&short);
+    let mut points = vec![vec![[0.0; 3]; n]; frames.len()];
+    let mut outs: Vec<FrameOut<'_>> = points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+    let e = deformer.frames(&frames, &mut outs).unwrap_err();
+    assert_eq!(e.frame, 4);
+    assert_eq!(e.error, Error::CountMismatch { what: "blend-shape weights", expected: 2, got: 1 });
+    // A wrong output length.
+    frames[4].blend_shape_weights = None;
+    let mut short_out = vec![[0.0; 3]; n - 1];
+    outs[6] = FrameOut { points: &mut short_out, gradients: None };
+    let e = deformer.frames(&frames, &mut outs).unwrap_err();
+    assert_eq!(e.frame, 6);
+    assert!(matches!(e.error, Error::CountMismatch { what: "output points", .. }), "{e}");
+    // Fewer outputs than frames.
+    let e = deformer.frames(&frames, &mut outs[..3]).unwrap_err();
+    assert!(matches!(e.error, Error::CountMismatch { what: "frame outputs", expected: 9, got: 3 }), "{e}");
+}
