@@ -1,6 +1,7 @@
 //! `curvenet bench --export DIR` on the 1.4k hand: the MatrixMarket file is
 //! read back independently of the code that wrote it, multiplied by the
 //! exported solutions, and must reproduce the exported right-hand sides.
+//! The same run's `--orderings` comparison is checked too.
 
 use std::process::Command;
 
@@ -42,7 +43,19 @@ fn exported_systems_are_solved_by_the_exported_solutions() {
     let dir = std::env::temp_dir().join(format!("curvenet-bench-export-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let out = Command::new(env!("CARGO_BIN_EXE_curvenet"))
-        .args(["bench", "--json", "--meshes", "hand_1k4", "--repeats", "1", "--frames", "2", "--no-corpus", "--export"])
+        .args([
+            "bench",
+            "--json",
+            "--meshes",
+            "hand_1k4",
+            "--repeats",
+            "1",
+            "--frames",
+            "2",
+            "--no-corpus",
+            "--orderings",
+            "--export",
+        ])
         .arg(&dir)
         .current_dir(repo())
         .output()
@@ -53,6 +66,14 @@ fn exported_systems_are_solved_by_the_exported_solutions() {
     let bpv = report["meshes"][0]["binding_bytes_per_vertex"].as_f64().unwrap();
     assert!(bpv > 0.0 && bpv.is_finite(), "binding_bytes_per_vertex {bpv}");
     assert!(report["growth"].is_null(), "no growth row without its base mesh");
+    // --orderings: both orderings factor this binding's matrix and solve alike.
+    let o = &report["meshes"][0]["orderings"];
+    assert_eq!((o["amd"]["ordering"].as_str(), o["metis"]["ordering"].as_str()), (Some("amd"), Some("metis")));
+    for key in ["amd", "metis"] {
+        assert!(o[key]["factor_nonzeros"].as_u64().unwrap() as usize >= unknowns, "{key}: {}", o[key]);
+    }
+    let diff = o["max_relative_difference"].as_f64().unwrap();
+    assert!(diff <= 1e-10, "METIS and AMD solutions differ by {diff:e}");
 
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap()).unwrap();

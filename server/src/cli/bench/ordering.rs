@@ -78,7 +78,8 @@ pub(super) fn compare(binding: &Binding, repeats: usize, solves: usize) -> CliRe
     let src3: Vec<[f64; 3]> = (0..n).map(|_| std::array::from_fn(|_| uniform(&mut rng))).collect();
     let (mut rhs9, mut work9) = (src9.clone(), vec![[0.0; 9]; n]);
     let (mut rhs3, mut work3) = (src3.clone(), vec![[0.0; 3]; n]);
-    let mut solutions: Vec<(Vec<[f64; 9]>, Vec<[f64; 3]>)> = Vec::new();
+    // Each ordering's first solutions, flattened (9 columns, then 3).
+    let mut solutions: Vec<Vec<f64>> = Vec::new();
     for i in 0..solves.max(1) + 1 {
         for run in &mut runs {
             let f = run.factor.as_ref().expect("factored above");
@@ -91,17 +92,13 @@ pub(super) fn compare(binding: &Binding, repeats: usize, solves: usize) -> CliRe
             if i > 0 {
                 run.solves.push(lap); // the first is a warm-up
             } else {
-                solutions.push((rhs9.clone(), rhs3.clone()));
+                solutions.push(rhs9.iter().flatten().chain(rhs3.iter().flatten()).copied().collect());
             }
         }
     }
-    let (amd_x, metis_x) = (&solutions[0], &solutions[1]);
-    let flat = |x: &(Vec<[f64; 9]>, Vec<[f64; 3]>)| -> Vec<f64> {
-        x.0.iter().flatten().chain(x.1.iter().flatten()).copied().collect()
-    };
-    let (xa, xm) = (flat(amd_x), flat(metis_x));
+    let (xa, xm) = (&solutions[0], &solutions[1]);
     let scale = xa.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let diff = xa.iter().zip(&xm).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+    let diff = xa.iter().zip(xm).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
     let bench = |run: &Runs| {
         let f = run.factor.as_ref().expect("factored above");
         let (ordering_ms, factor_ms) = (median(run.analysis.clone()), median(run.total.clone()));
