@@ -3,7 +3,42 @@
 //! interleaved per row (`[f64; K]` per unknown).
 //!
 //! The ordering (AMD), symbolic analysis and numeric factorisation are faer's
-//! (`Par::Seq`: frames are parallelised across, not inside, solves). The
+//! (`Par::Seq`: frames are parallelised across, not inside, solves).
+//!
+//! **Ordering: AMD, measured against METIS.** [`Ordering::Metis`] orders
+//! with METIS nested dissection (`METIS_NodeND` through `metis-sys`, which
+//! compiles METIS's vendored C sources; default options, seed 1, one call
+//! at a time because METIS's random generator is global) and hands the
+//! permutation to faer as a custom ordering; [`Cholesky::new`] uses AMD.
+//! `curvenet bench --orderings` factored the bindings' own matrices with
+//! both, alternating, on 2026-12-01 (this 2-core machine, load 8-9; medians
+//! of 3 factorisations and 20 solves of 9 + 3 columns):
+//!
+//! | matrix | unknowns | L nnz AMD → METIS | ordering + symbolic, ms | whole factorisation, ms | frame's two solves, ms |
+//! |---|---|---|---|---|---|
+//! | hand_22k | 21,995 | 285,753 → 314,074 (1.10×) | 25 → 153 | 35 → 175 (5.0×) | 5.7 / 2.0 and 3.9 / 6.1 (two runs: noise) |
+//! | koala (corpus) | 49,933 | 643,907 → 716,749 (1.11×) | 91 → 440 | 135 → 516 (3.8×) | 16.8 / 11.1 and 8.9 / 12.5 |
+//! | hand_94k | 93,977 | 1,636,059 → 1,680,076 (1.03×) | 146 → 797 | 234 → 896 (3.8×) | 28.2 / 29.7 and 29.5 / 29.1 |
+//!
+//! On every corpus mesh too METIS gave 3-11% *more* fill (1.03-1.11×) and
+//! a 3-9× slower factorisation; with `METIS_OPTION_CCORDER` (components
+//! ordered apart) the same. The curvenet cuts these surfaces into regions
+//! whose unknowns are coupled only inside each region, and the fill of
+//! such a matrix is small and local, which minimum degree already finds;
+//! nested dissection's separators pay off on the plain mesh Laplacians the
+//! earlier measurement (22-37% less fill) was made on, not on these. Built
+//! with METIS, the 22k binding took 504 ms and the 94k 1.7 s in the same
+//! run: the binding targets (150 ms, 560 ms) rule it out. The solutions of
+//! both orderings agree to 1e-13 relative (`core/tests/ordering_export.rs`
+//! checks 1e-10 on the 22k hand). A geometric nested dissection was not
+//! tried: METIS's separators are at least as good as geometric ones on a
+//! surface mesh, and they lose here. Only on the 94k hand subdivided 1-to-4
+//! (375,911 unknowns, the bench's growth row) does METIS win: 12.6M → 9.1M
+//! nonzeros (0.72×), the two solves 376 → 296 ms, but the factorisation
+//! 4.3 → 6.5 s (its ordering alone 5.6 s at load 9.5); AMD stays the
+//! default at every size, since every binding pays the ordering and the
+//! binding time is what the targets bound. A caller binding one very large
+//! mesh for a long bake could choose METIS; none does yet. The
 //! solves are written here: faer's solves take column-major right-hand sides
 //! and scatter one column at a time, while a frame solves 9 and then 3
 //! columns at once; keeping the K values of a row together makes each
@@ -17,6 +52,7 @@
 use std::sync::Arc;
 
 use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::perm::PermRef;
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::linalg::cholesky::{
     CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw, SymmetricOrdering, factorize_symbolic_cholesky,
@@ -45,22 +81,47 @@ pub struct Cholesky {
     row_idx: Vec<u32>,
     values: Vec<f64>,
     symbolic: Arc<SymbolicCholesky<u32>>,
+    /// The ordering used ([`Ordering::Amd`] or [`Ordering::Metis`]).
+    ordering: Ordering,
+    /// Wall time of the ordering and symbolic analysis (0 for a refactored copy).
+    analysis_ms: f64,
 }
 
 impl Cholesky {
-    /// Orders (AMD), analyses and factors `a`. Fails with
+    /// Orders (AMD, see the module docs), analyses and factors `a`. Fails with
     /// [`Error::NotPositiveDefinite`] naming the row (in `a`'s order) of the
     /// first non-positive pivot when `a` is not numerically SPD.
     pub fn new(a: &SymmetricTriplets) -> Result<Self> {
-        Self::with_threshold(a, SupernodalThreshold::AUTO)
+        Self::with_threshold(a, Ordering::Amd, SupernodalThreshold::AUTO)
     }
 
-    fn with_threshold(a: &SymmetricTriplets, threshold: SupernodalThreshold) -> Result<Self> {
+    /// Like [`Self::new`] with the fill-reducing ordering chosen by the
+    /// caller (`curvenet bench --orderings` compares them; tests check that
+    /// they solve alike).
+    pub fn with_ordering(a: &SymmetricTriplets, ordering: Ordering) -> Result<Self> {
+        Self::with_threshold(a, ordering, SupernodalThreshold::AUTO)
+    }
+
+    fn with_threshold(a: &SymmetricTriplets, ordering: Ordering, threshold: SupernodalThreshold) -> Result<Self> {
         let mat = to_faer(a)?;
+        let t0 = std::time::Instant::now();
+        let metis = match ordering {
+            Ordering::Metis => metis_permutation(&mat),
+            _ => None,
+        };
+        // METIS refusing the graph (it should not) falls back to AMD.
+        let (ordering, faer_ordering) = match &metis {
+            Some((fwd, inv)) => (Ordering::Metis, SymmetricOrdering::Custom(PermRef::new_checked(fwd, inv, a.n))),
+            None => (Ordering::Amd, SymmetricOrdering::Amd),
+        };
         let params = CholeskySymbolicParams { supernodal_flop_ratio_threshold: threshold, ..Default::default() };
-        let symbolic = factorize_symbolic_cholesky(mat.symbolic(), Side::Lower, SymmetricOrdering::Amd, params)
+        let symbolic = factorize_symbolic_cholesky(mat.symbolic(), Side::Lower, faer_ordering, params)
             .map_err(|e| Error::Internal { what: format!("symbolic Cholesky failed: {e:?}") })?;
-        Self::numeric(Arc::new(symbolic), &mat)
+        let analysis_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let mut f = Self::numeric(Arc::new(symbolic), &mat)?;
+        f.ordering = ordering;
+        f.analysis_ms = analysis_ms;
+        Ok(f)
     }
 
     /// Factors a matrix with the same pattern as the one this factor was
@@ -70,7 +131,9 @@ impl Cholesky {
         if a.n != self.n {
             return Err(Error::CountMismatch { what: "refactored matrix size", expected: self.n, got: a.n });
         }
-        Self::numeric(self.symbolic.clone(), &mat)
+        let mut f = Self::numeric(self.symbolic.clone(), &mat)?;
+        f.ordering = self.ordering;
+        Ok(f)
     }
 
     fn numeric(symbolic: Arc<SymbolicCholesky<u32>>, mat: &SparseColMat<u32, f64>) -> Result<Self> {
@@ -140,7 +203,7 @@ impl Cholesky {
                 (col_ptr, row_idx, values)
             }
         };
-        Ok(Self { n, perm, col_ptr, row_idx, values, symbolic })
+        Ok(Self { n, perm, col_ptr, row_idx, values, symbolic, ordering: Ordering::Amd, analysis_ms: 0.0 })
     }
 
     /// Size of the factored matrix.
@@ -152,6 +215,18 @@ impl Cholesky {
     /// matrices) rather than the simplicial one.
     pub fn is_supernodal(&self) -> bool {
         matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+    }
+
+    /// The fill-reducing ordering this factor was built with (AMD when
+    /// METIS was asked for but refused the graph).
+    pub fn ordering(&self) -> Ordering {
+        self.ordering
+    }
+
+    /// Milliseconds spent on the ordering and symbolic analysis when this
+    /// factor was built (0 for [`Self::refactor`]ed copies, which reuse them).
+    pub fn analysis_ms(&self) -> f64 {
+        self.analysis_ms
     }
 
     /// Number of stored entries of L.
@@ -208,6 +283,105 @@ impl Cholesky {
             rhs[self.perm[k] as usize] = *w;
         }
     }
+}
+
+/// The fill-reducing ordering of the factorisation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ordering {
+    /// faer's approximate minimum degree.
+    Amd,
+    /// METIS nested dissection (`METIS_NodeND`, default options, fixed seed).
+    Metis,
+}
+
+impl Ordering {
+    /// The name the bench prints (`amd`, `metis`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Ordering::Amd => "amd",
+            Ordering::Metis => "metis",
+        }
+    }
+}
+
+/// METIS's global state (GKlib's random number generator) is not thread-safe:
+/// bindings built concurrently take turns ordering.
+static METIS_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// METIS nested dissection of `mat`'s graph (its off-diagonal pattern):
+/// `(forward, inverse)` with `forward[k]` the original index of permuted row
+/// `k`. `None` when METIS refuses (an error code) or the matrix is too
+/// small to be worth it; the caller falls back to AMD.
+fn metis_permutation(mat: &SparseColMat<u32, f64>) -> Option<(Vec<u32>, Vec<u32>)> {
+    use metis_sys::idx_t;
+    let n = mat.nrows();
+    if n < 2 || n > idx_t::MAX as usize {
+        return None;
+    }
+    // Symmetric adjacency (CSR) from the lower triangle, without the diagonal.
+    let (cp, ri) = (mat.symbolic().col_ptr(), mat.symbolic().row_idx());
+    let mut degree = vec![0 as idx_t; n + 1];
+    for j in 0..n {
+        for &i in &ri[cp[j] as usize..cp[j + 1] as usize] {
+            if i as usize != j {
+                degree[i as usize + 1] += 1;
+                degree[j + 1] += 1;
+            }
+        }
+    }
+    for k in 0..n {
+        degree[k + 1] += degree[k];
+    }
+    let mut xadj = degree;
+    if xadj[n] == 0 {
+        return None;
+    }
+    let mut next: Vec<idx_t> = xadj[..n].to_vec();
+    let mut adjncy = vec![0 as idx_t; xadj[n] as usize];
+    for j in 0..n {
+        for &i in &ri[cp[j] as usize..cp[j + 1] as usize] {
+            let i = i as usize;
+            if i != j {
+                adjncy[next[i] as usize] = j as idx_t;
+                next[i] += 1;
+                adjncy[next[j] as usize] = i as idx_t;
+                next[j] += 1;
+            }
+        }
+    }
+    let mut options = [-1 as idx_t; metis_sys::METIS_NOPTIONS as usize];
+    options[metis_sys::moptions_et_METIS_OPTION_NUMBERING as usize] = 0;
+    options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = 1;
+    let mut nvtxs = n as idx_t;
+    let mut perm = vec![0 as idx_t; n];
+    let mut iperm = vec![0 as idx_t; n];
+    let status = {
+        let _turn = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+        // SAFETY: every pointer is to a live buffer of the length METIS_NodeND
+        // reads or writes: nvtxs one value, xadj n + 1, adjncy xadj[n],
+        // options METIS_NOPTIONS, perm and iperm n; vwgt may be null. The
+        // graph is symmetric without self-loops, as METIS requires.
+        unsafe {
+            metis_sys::METIS_NodeND(
+                &mut nvtxs,
+                xadj.as_mut_ptr(),
+                adjncy.as_mut_ptr(),
+                std::ptr::null_mut(),
+                options.as_mut_ptr(),
+                perm.as_mut_ptr(),
+                iperm.as_mut_ptr(),
+            )
+        }
+    };
+    if status != metis_sys::rstatus_et_METIS_OK {
+        return None;
+    }
+    // METIS: row k of the permuted matrix is row perm[k] of the original
+    // (faer's forward array); iperm is its inverse. Checked, not trusted.
+    let fwd: Vec<u32> = perm.iter().map(|&p| p as u32).collect();
+    let inv: Vec<u32> = iperm.iter().map(|&p| p as u32).collect();
+    let valid = fwd.iter().enumerate().all(|(k, &p)| (p as usize) < n && inv[p as usize] as usize == k);
+    valid.then_some((fwd, inv))
 }
 
 impl Cholesky {
@@ -394,7 +568,7 @@ mod tests {
     fn check_solve(a: &SymmetricTriplets, supernodal: bool) {
         let threshold =
             if supernodal { SupernodalThreshold::FORCE_SUPERNODAL } else { SupernodalThreshold::FORCE_SIMPLICIAL };
-        let f = Cholesky::with_threshold(a, threshold).unwrap();
+        let f = Cholesky::with_threshold(a, Ordering::Amd, threshold).unwrap();
         assert_eq!(f.is_supernodal(), supernodal);
         let x: Vec<[f64; 3]> = (0..a.n).map(|i| [i as f64, (i % 5) as f64 - 2.0, 1.0]).collect();
         let mut b = multiply(a, &x);
@@ -413,11 +587,38 @@ mod tests {
     }
 
     #[test]
+    fn metis_orders_a_grid_and_solves_as_amd_does() {
+        let a = grid(50, 0.0);
+        let amd = Cholesky::with_ordering(&a, Ordering::Amd).unwrap();
+        let metis = Cholesky::with_ordering(&a, Ordering::Metis).unwrap();
+        assert_eq!((amd.ordering(), metis.ordering()), (Ordering::Amd, Ordering::Metis));
+        assert_ne!(amd.perm, metis.perm, "a different ordering");
+        let mut sorted = metis.perm.clone();
+        sorted.sort_unstable();
+        assert!(sorted.iter().enumerate().all(|(i, &p)| p as usize == i), "a permutation");
+        let b: Vec<[f64; 2]> = (0..a.n).map(|i| [(i % 13) as f64 - 6.0, 1.0]).collect();
+        let (mut xa, mut xm, mut w) = (b.clone(), b.clone(), vec![[0.0; 2]; a.n]);
+        amd.solve_in_place(&mut xa, &mut w);
+        metis.solve_in_place(&mut xm, &mut w);
+        let scale = xa.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+        let diff = xa.iter().flatten().zip(xm.iter().flatten()).fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        assert!(diff <= 1e-12 * scale, "{diff:e}");
+        // The same seed, the same ordering (METIS's generator is seeded per call).
+        assert_eq!(Cholesky::with_ordering(&a, Ordering::Metis).unwrap().perm, metis.perm);
+        // A refactored copy keeps its ordering.
+        assert_eq!(metis.refactor(&a).unwrap().ordering(), Ordering::Metis);
+        // A 1×1 METIS request falls back to AMD; `new` orders with AMD.
+        let one = SymmetricTriplets { n: 1, entries: vec![(0, 0, 2.0)] };
+        assert_eq!(Cholesky::with_ordering(&one, Ordering::Metis).unwrap().ordering(), Ordering::Amd);
+        assert_eq!(Cholesky::new(&a).unwrap().ordering(), Ordering::Amd);
+    }
+
+    #[test]
     fn permuted_multi_column_solves_match_the_per_row_solve_bit_for_bit() {
         for (a, supernodal) in [(grid(40, 0.0), false), (grid(70, 0.0), true)] {
             let threshold =
                 if supernodal { SupernodalThreshold::FORCE_SUPERNODAL } else { SupernodalThreshold::FORCE_SIMPLICIAL };
-            let f = Cholesky::with_threshold(&a, threshold).unwrap();
+            let f = Cholesky::with_threshold(&a, Ordering::Amd, threshold).unwrap();
             let n = a.n;
             let column = |c: usize| -> Vec<[f64; 3]> {
                 (0..n).map(|i| [((i * 7 + c) % 11) as f64 - 5.0, (i % (c + 2)) as f64, c as f64 + 0.5]).collect()

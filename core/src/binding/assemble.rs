@@ -57,27 +57,45 @@ pub(crate) fn assemble(
         }
         face_laplacian.extend_from_slice(&lf);
         face_laplacian_start.push(face_laplacian.len() as u32);
-        let base = hs.start as usize;
-        for j in 0..n {
-            let Corner::Unknown(uj) = corner[base + j] else { continue };
-            for k in 0..n {
-                let l = lf[j * n + k];
-                if l == 0.0 {
-                    continue;
-                }
-                match corner[base + k] {
-                    Corner::Unknown(uk) if uk <= uj => system.push((uj.0, uk.0, l)),
-                    Corner::Constraint(r) => b_entries.push((uj.0, r.0, l)),
-                    _ => {}
-                }
-            }
-        }
+        split_face(&lf, &corner[hs.start as usize..hs.end as usize], &mut system, Some(&mut b_entries));
     }
     if degenerate > 0 {
         warnings.push(BindWarning::DegenerateCutFaces { count: degenerate });
     }
     let b = Csr::from_triplets(n_unknowns, n_rows, b_entries);
     Ok(Assembled { face_laplacian, face_laplacian_start, system, b })
+}
+
+/// Splits one cut-face's Laplacian `lf` (n×n, row-major, n = `corner.len()`,
+/// its corners in order) by corner: unknown–unknown entries of the lower
+/// triangle to `system` (`VᵀL_hV`), unknown–constraint entries to `b`
+/// (`VᵀL_hC`) when given. [`assemble`] and [`super::Binding::system_matrix`]
+/// both split through here, so the exported matrix is the factored one.
+pub(crate) fn split_face(
+    lf: &[f64],
+    corner: &[Corner],
+    system: &mut Vec<(u32, u32, f64)>,
+    mut b: Option<&mut Vec<(u32, u32, f64)>>,
+) {
+    let n = corner.len();
+    for j in 0..n {
+        let Corner::Unknown(uj) = corner[j] else { continue };
+        for k in 0..n {
+            let l = lf[j * n + k];
+            if l == 0.0 {
+                continue;
+            }
+            match corner[k] {
+                Corner::Unknown(uk) if uk <= uj => system.push((uj.0, uk.0, l)),
+                Corner::Constraint(r) => {
+                    if let Some(b) = b.as_deref_mut() {
+                        b.push((uj.0, r.0, l));
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
 }
 
 /// Factors `VᵀL_hV`. A pivot that fails is named by its mesh vertex and

@@ -32,6 +32,7 @@ mod assemble;
 mod classify;
 pub mod cut;
 mod drawing;
+mod export;
 mod join;
 pub mod locate;
 pub mod path;
@@ -55,6 +56,7 @@ use crate::sparse::Csr;
 pub use cut::{
     CROSSING, CutInput, CutMesh, CutOptions, DETOUR_EDGES, DETOUR_RATIO, Detour, EmbeddingCounts, MESH_VERTEX, SAMPLE,
 };
+pub use export::FrameSystem;
 pub use surface::Surface;
 
 /// Options of [`Binding::new`].
@@ -471,7 +473,22 @@ impl Binding {
     }
     /// Solves `VᵀL_hV x = rhs` for K columns stored per row (see [`Cholesky::solve_in_place`]).
     pub fn solve_in_place<const K: usize>(&self, rhs: &mut [[f64; K]], work: &mut [[f64; K]]) {
-        if !rhs.is_empty() {
+        if rhs.is_empty() {
+            return;
+        }
+        // One borrow check of a thread-local per solve when nothing records
+        // (no allocation): see [`Binding::frame_system`].
+        let recording = SOLVES.with(|r| r.borrow().is_some());
+        if recording {
+            let before = rhs.as_flattened().to_vec();
+            self.factor.solve_in_place(rhs, work);
+            let after = rhs.as_flattened().to_vec();
+            SOLVES.with(|r| {
+                if let Some(list) = r.borrow_mut().as_mut() {
+                    list.push(RecordedSolve { columns: K, rhs: before, solution: after });
+                }
+            });
+        } else {
             self.factor.solve_in_place(rhs, work);
         }
     }
@@ -532,6 +549,21 @@ impl Binding {
 
 /// A curvenet's samples and per-side scaled frames in one pose.
 pub type CurvenetPose = (Vec<[f64; 3]>, Vec<[ScaledFrame; 2]>);
+
+/// One triangular solve of a frame, recorded: right-hand side and solution,
+/// `columns` values per unknown (interleaved per row, unknown order).
+#[derive(Debug, Clone)]
+pub(crate) struct RecordedSolve {
+    pub columns: usize,
+    pub rhs: Vec<f64>,
+    pub solution: Vec<f64>,
+}
+
+thread_local! {
+    /// `Some` while [`Binding::frame_system`] records the solves of one
+    /// frame on this thread; `None` (no recording) otherwise.
+    pub(crate) static SOLVES: std::cell::RefCell<Option<Vec<RecordedSolve>>> = const { std::cell::RefCell::new(None) };
+}
 
 fn ms(a: Instant, b: Instant) -> f64 {
     (b - a).as_secs_f64() * 1e3

@@ -1,5 +1,7 @@
 //! `curvenet bench [--json] [--meshes hand_1k4,hand_22k,hand_94k] [--repeats N]
-//! [--frames N] [--fixtures DIR] [--threads N] [--no-corpus] [--corpus-frames N]`:
+//! [--frames N] [--fixtures DIR] [--threads N] [--no-corpus] [--corpus-frames N]
+//! [--orderings] [--export DIR] [--no-growth] [--growth-mesh M] [--growth-repeats N]
+//! [--growth-frames N]`:
 //! the paper's Table 1 (faces, vertices, knots, samples, cutting, factor and
 //! per-frame solve times) on the hand fixtures, plus what is needed to read
 //! those numbers, and a row per robustness-corpus mesh (`fixtures/corpus`).
@@ -65,6 +67,16 @@
 //!   (straightest path, fallback path, inside one face, left out) and the
 //!   binding's warnings.
 //!
+//! - **Orderings** (with `--orderings`): every hand's and corpus mesh's
+//!   matrix factored with AMD and with METIS, alternating (`bench/ordering.rs`).
+//! - **Export** (with `--export DIR`): every hand's system matrix, one
+//!   frame's right-hand sides and solutions and a manifest (`bench/export.rs`).
+//! - **Growth** (unless `--no-growth`; only when `--growth-mesh`, default
+//!   hand_94k, is among `--meshes`): that hand subdivided 1-to-4 at run time
+//!   and bound to the same curvenets (`bench/growth.rs`).
+//! - **Memory**: `binding_bytes_per_vertex`, the binding's `heap_bytes` over
+//!   the mesh's vertices.
+//!
 //! `--json` prints one object: `{"threads", "repeats", "frames", "meshes":
 //! [...], "corpus": [...]}`, one entry per hand mesh with (at least) `mesh`,
 //! `vertices`, `faces`, `knots`, `samples`, `cutting_ms`, `factor_ms`,
@@ -86,6 +98,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{CliError, CliResult};
+
+mod export;
+mod growth;
+mod ordering;
 
 /// Largest curl angle of the generated poses, degrees.
 const MAX_ANGLE_DEG: f64 = 60.0;
@@ -122,7 +138,38 @@ pub struct Args {
     /// Timed frames per corpus mesh.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     pub corpus_frames: u32,
+    /// Also factor every mesh's matrix with AMD and with METIS and compare
+    /// them (fill, ordering, factorisation and solve times; `bench/ordering.rs`).
+    #[arg(long)]
+    pub orderings: bool,
+    /// Write every hand mesh's system matrix, one frame's right-hand sides
+    /// and solutions and a manifest into DIR (`bench/export.rs`).
+    #[arg(long, value_name = "DIR")]
+    pub export: Option<PathBuf>,
+    /// Leave out the growth row (the `--growth-mesh` subdivided 1-to-4; slow;
+    /// only made when that mesh is among `--meshes`, as it is by default).
+    #[arg(long)]
+    pub no_growth: bool,
+    /// The hand fixture the growth row subdivides.
+    #[arg(long, default_value = "hand_94k")]
+    pub growth_mesh: String,
+    /// Bindings of the growth mesh (times are medians).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub growth_repeats: u32,
+    /// Timed frames of the growth mesh.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    pub growth_frames: u32,
 }
+
+/// What `bench_mesh` does besides the bench proper.
+struct Extra<'a> {
+    orderings: bool,
+    export: Option<&'a Path>,
+    exported: Vec<export::Exported>,
+}
+
+/// The pose `--export` writes: the finger curl at frame 1 of 4 (30°).
+const EXPORT_FRAME: (usize, usize) = (1, 4);
 
 #[derive(Serialize)]
 struct Report {
@@ -131,6 +178,8 @@ struct Report {
     frames: usize,
     meshes: Vec<MeshBench>,
     corpus: Vec<CorpusBench>,
+    /// The growth row (null with `--no-growth`).
+    growth: Option<growth::GrowthBench>,
 }
 
 /// One corpus mesh: binding and solve medians, how its segments were
@@ -159,6 +208,8 @@ struct CorpusBench {
     neutral_max_error: f64,
     /// The binding's warnings (`code: message`).
     warnings: Vec<String>,
+    /// AMD against METIS on this binding's matrix (with `--orderings`).
+    orderings: Option<ordering::OrderingComparison>,
 }
 
 #[derive(Serialize)]
@@ -186,6 +237,11 @@ struct MeshBench {
     unknowns: usize,
     constraints: usize,
     factor_nonzeros: usize,
+    /// The factor's fill-reducing ordering (`amd` or `metis`).
+    ordering: &'static str,
+    /// `Binding::heap_bytes` of the binding, and per mesh vertex.
+    binding_bytes: usize,
+    binding_bytes_per_vertex: f64,
     // Binding.
     repeats: usize,
     load_ms: f64,
@@ -238,6 +294,8 @@ struct MeshBench {
     /// Frames in groups of K (`batch`, `batch_k`, `batch_frames_per_s`, `batch_over_reference`; bench_batch.rs).
     #[serde(flatten)]
     batch: super::bench_batch::BatchFigures,
+    /// AMD against METIS on this binding's matrix (with `--orderings`).
+    orderings: Option<ordering::OrderingComparison>,
 }
 
 #[derive(Serialize, Clone, Copy)]
@@ -274,25 +332,53 @@ pub fn run(args: &Args) -> CliResult {
     };
     let (repeats, frames) = (args.repeats as usize, args.frames as usize);
     let corpus = if args.no_corpus { Vec::new() } else { corpus_files(dir)? };
-    let mut report = Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new() };
+    // The growth row grows a mesh benched in this run (its frame is the
+    // reference of the row's frame target): none when that mesh is not.
+    let grow = !args.no_growth && args.meshes.contains(&args.growth_mesh);
+    let growth_file = if grow { Some(fixture_file(dir, &args.growth_mesh)?) } else { None };
+    let mut report = Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new(), growth: None };
+    let mut extra = Extra { orderings: args.orderings, export: args.export.as_deref(), exported: Vec::new() };
     for (name, file) in args.meshes.iter().zip(&files) {
         if !args.json {
             eprintln!("curvenet bench: {name}: {repeats} bindings, {frames} frames…");
         }
-        report.meshes.push(bench_mesh(name, file, repeats, frames, threads)?);
+        report.meshes.push(bench_mesh(name, file, repeats, frames, threads, &mut extra)?);
+    }
+    if let Some(dir) = &args.export {
+        export::write_manifest(dir, &extra.exported)?;
     }
     let corpus_frames = args.corpus_frames as usize;
     for (name, file) in &corpus {
         if !args.json {
             eprintln!("curvenet bench: corpus {name}: {repeats} bindings, {corpus_frames} frames…");
         }
-        report.corpus.push(bench_corpus_mesh(name, file, repeats, corpus_frames)?);
+        report.corpus.push(bench_corpus_mesh(name, file, repeats, corpus_frames, args.orderings)?);
+    }
+    if let Some(file) = &growth_file {
+        let name = &args.growth_mesh;
+        let (g_repeats, g_frames) = (args.growth_repeats as usize, args.growth_frames as usize);
+        if !args.json {
+            eprintln!("curvenet bench: growth: {name} subdivided 1-to-4, {g_repeats} bindings, {g_frames} frames…");
+        }
+        let base_solve = report.meshes.iter().find(|m| &m.mesh == name).map(|m| m.solve_ms);
+        report.growth = Some(growth::bench_growth(name, file, g_repeats, g_frames, base_solve, args.orderings)?);
     }
     if args.json {
         let text = serde_json::to_string_pretty(&report).map_err(|e| CliError::Input(e.to_string()))?;
         println!("{text}");
     } else {
         print!("{}", text_report(&report));
+        let rows: Vec<(&str, &ordering::OrderingComparison)> = report
+            .meshes
+            .iter()
+            .filter_map(|m| m.orderings.as_ref().map(|o| (m.mesh.as_str(), o)))
+            .chain(report.corpus.iter().filter_map(|m| m.orderings.as_ref().map(|o| (m.mesh.as_str(), o))))
+            .chain(report.growth.iter().filter_map(|g| g.orderings.as_ref().map(|o| ("growth", o))))
+            .collect();
+        print!("{}", ordering::text(&rows, repeats, frames));
+        if let Some(g) = &report.growth {
+            print!("{}", growth::text(g));
+        }
     }
     Ok(())
 }
@@ -360,7 +446,13 @@ fn solve(deformer: &Deformer, posed: &[Option<&[[f64; 3]]>], out: &mut [[f64; 3]
     deformer.frame(&Frame { posed, ..Frame::default() }, out, None)
 }
 
-fn bench_corpus_mesh(name: &str, file: &Path, repeats: usize, frames: usize) -> CliResult<CorpusBench> {
+fn bench_corpus_mesh(
+    name: &str,
+    file: &Path,
+    repeats: usize,
+    frames: usize,
+    orderings: bool,
+) -> CliResult<CorpusBench> {
     let (mesh, nets, _) = load(file)?;
     let context = format!("{} {}", file.display(), mesh.path);
     let (mut binding_ms, mut analysis_ms) = (Vec::new(), Vec::new());
@@ -394,6 +486,7 @@ fn bench_corpus_mesh(name: &str, file: &Path, repeats: usize, frames: usize) -> 
     }
     let b = deformer.binding();
     let stats = b.stats();
+    let orderings = if orderings { Some(ordering::compare(b, repeats, frames)?) } else { None };
     Ok(CorpusBench {
         mesh: name.to_string(),
         file: file.display().to_string(),
@@ -419,6 +512,7 @@ fn bench_corpus_mesh(name: &str, file: &Path, repeats: usize, frames: usize) -> 
                 format!("{}: {}", wire.code, wire.message)
             })
             .collect(),
+        orderings,
     })
 }
 
@@ -426,7 +520,14 @@ fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_
     move |source| CliError::Core { context: context.to_string(), source }
 }
 
-fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: usize) -> CliResult<MeshBench> {
+fn bench_mesh(
+    name: &str,
+    file: &Path,
+    repeats: usize,
+    frames: usize,
+    threads: usize,
+    extra: &mut Extra,
+) -> CliResult<MeshBench> {
     // Load (once; timed for context).
     let (mesh, nets, load_ms) = load(file)?;
     let context = format!("{} {}", file.display(), mesh.path);
@@ -497,6 +598,17 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         max_displacement = max_displacement.max(max_distance(&out, points) / diagonal);
     }
 
+    // AMD against METIS, and the export, on this binding.
+    let orderings = if extra.orderings { Some(ordering::compare(binding, repeats, frames)?) } else { None };
+    if let Some(dir) = extra.export {
+        let (index, of) = EXPORT_FRAME;
+        let pools = pose(&nets, index, of);
+        let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
+        let angle_deg = MAX_ANGLE_DEG * 0.5 * (1.0 - (std::f64::consts::TAU * index as f64 / of as f64).cos());
+        let frame = export::ExportedFrame { index, frames: of, angle_deg };
+        extra.exported.push(export::export_mesh(dir, name, binding, &posed, frame)?);
+    }
+
     // Throughput across frames.
     let jobs = frames.max(8 * threads);
     let serial =
@@ -539,6 +651,9 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         unknowns: stats.unknowns,
         constraints: stats.constraints,
         factor_nonzeros: stats.factor_nonzeros,
+        ordering: binding.factor().ordering().name(),
+        binding_bytes: binding.heap_bytes(),
+        binding_bytes_per_vertex: binding.heap_bytes() as f64 / stats.mesh_vertices.max(1) as f64,
         repeats,
         load_ms,
         analysis_ms: median(analysis),
@@ -578,6 +693,7 @@ fn bench_mesh(name: &str, file: &Path, repeats: usize, frames: usize, threads: u
         warnings: binding.warnings().iter().map(|w| w.to_string()).collect(),
         targets,
         batch,
+        orderings,
     })
 }
 
@@ -906,14 +1022,32 @@ fn text_report(r: &Report) -> String {
     let _ = writeln!(s, "Sizes");
     let _ = writeln!(
         s,
-        "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9}",
-        "mesh", "splines", "segments", "cut faces", "cut verts", "unknowns", "constraints", "L nnz"
+        "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9} {:>9} {:>14}",
+        "mesh",
+        "splines",
+        "segments",
+        "cut faces",
+        "cut verts",
+        "unknowns",
+        "constraints",
+        "L nnz",
+        "ordering",
+        "binding B/vert"
     );
     for m in &r.meshes {
         let _ = writeln!(
             s,
-            "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9}",
-            m.mesh, m.splines, m.segments, m.cut_faces, m.cut_vertices, m.unknowns, m.constraints, m.factor_nonzeros
+            "{:<w$} {:>8} {:>9} {:>9} {:>11} {:>10} {:>12} {:>9} {:>9} {:>14.0}",
+            m.mesh,
+            m.splines,
+            m.segments,
+            m.cut_faces,
+            m.cut_vertices,
+            m.unknowns,
+            m.constraints,
+            m.factor_nonzeros,
+            m.ordering,
+            m.binding_bytes_per_vertex
         );
     }
     let _ = writeln!(s);
