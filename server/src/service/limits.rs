@@ -111,8 +111,15 @@ pub fn predict(req: &BindingRequest, mean_edge_length: f64) -> Prediction {
         .collect();
     let total_segments = segments.iter().fold(0u64, |a, &b| a.saturating_add(b));
     let corners = req.face_vertex_indices.len() as u64;
-    let bytes_at_least =
-        corners.saturating_mul(BYTES_PER_CORNER).saturating_add(total_segments.saturating_mul(BYTES_PER_SEGMENT));
+    // A cage's mean value coordinates Φ: one f64 per mesh vertex and cage vertex.
+    let phi = req
+        .cage
+        .as_ref()
+        .map_or(0, |c| (req.projection_points.len() as u64).saturating_mul(c.points.len() as u64).saturating_mul(8));
+    let bytes_at_least = corners
+        .saturating_mul(BYTES_PER_CORNER)
+        .saturating_add(total_segments.saturating_mul(BYTES_PER_SEGMENT))
+        .saturating_add(phi);
     Prediction { segments, total_segments, bytes_at_least }
 }
 
@@ -169,6 +176,7 @@ mod tests {
             curvenets: vec![c],
             blend_shapes: Vec::new(),
             skin: None,
+            cage: None,
             options: Default::default(),
         }
     }
