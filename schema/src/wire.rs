@@ -206,6 +206,44 @@ impl BindingRequest {
     }
 }
 
+impl BindingRequest {
+    /// The request with the stage's cage (`Stage::cage`): its rest points
+    /// at bind and its triangles.
+    pub fn with_cage(mut self, cage: &crate::CageData) -> Self {
+        self.cage = Some(CageSpec { points: cage.rest_points.clone(), triangles: cage.triangles.clone() });
+        self
+    }
+
+    /// The request with the mesh's UsdSkel skin (`Stage::skin_rig`), its
+    /// skeleton, and how each curvenet follows it (`curvenets`, binding
+    /// order, e.g. from `Stage::curvenet_skinning`), as `curvenet bake`
+    /// rigs it: `curvenet:skinningMethod` overrides UsdSkel's token.
+    pub fn with_skin(mut self, rig: &crate::usd::SkinRig, curvenets: Vec<CurvenetSkinSpec>) -> Self {
+        use crate::usd::CurvenetSkinningMethod as M;
+        use curvenet_core::skinning::SkinningMethod as S;
+        let method = match (rig.curvenet_method, rig.method) {
+            (Some(M::ClassicLinear), _) | (None, S::ClassicLinear) => SkinMethod::ClassicLinear,
+            (Some(M::DualQuaternion), _) | (None, S::DualQuaternion) => SkinMethod::DualQuaternion,
+            (Some(M::CentersOfRotation), _) | (None, S::CentersOfRotation) => SkinMethod::CentersOfRotation,
+        };
+        self.skin = Some(SkinSpec {
+            joints: rig.joints.len() as u32,
+            element_size: rig.element_size as u32,
+            joint_indices: rig.joint_indices.clone(),
+            joint_weights: rig.joint_weights.clone(),
+            geom_bind_transform: Some(rig.geom_bind_transform),
+            method,
+            curvenets: if curvenets.iter().all(|c| *c == CurvenetSkinSpec::None) { Vec::new() } else { curvenets },
+            flexible_iterations: 0,
+            skeleton: Some(SkeletonSpec {
+                parents: rig.parents.iter().map(|p| p.map_or(-1, i64::from)).collect(),
+                bind_transforms: rig.bind_transforms.clone(),
+            }),
+        });
+        self
+    }
+}
+
 /// One curvenet: a pool of control points and cubic Bézier splines indexing it.
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]

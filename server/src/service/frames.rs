@@ -321,6 +321,13 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
             .detail(|d| d.what = Some("orientations".into())));
         }
     }
+    if frame.orientations && entry.deformer.cage().is_some() {
+        return Err(ServiceError::new(
+            Code::Unsupported,
+            "orientations with a cage: knot orientations of a caged binding's frames are not answered yet",
+        )
+        .detail(|d| d.what = Some("orientations".into())));
+    }
     for (what, cage) in [("rest_cage", &frame.rest_cage), ("posed_cage_offsets", &frame.posed_cage_offsets)] {
         let Some(cage) = cage else { continue };
         let Some(vertices) = entry.deformer.cage().map(|c| c.n_cage_vertices()) else {

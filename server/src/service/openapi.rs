@@ -71,7 +71,7 @@ impl Modify for BearerAuth {
         BindingTimings, Warning, SegmentAt, SegmentId, TouchAt, FrameRequest, FrameResponse, AdjustmentSpec, SkinSpec, SkeletonSpec, CageSpec, CageStats, CurvenetSkinSpec, SkinMethod, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
         DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, ErrorDetails, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
-        viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
+        viewer::ViewerStages, viewer::CageView, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
         viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight, viewer::ViewerAdjustment,
         viewer::ViewerAdjustRequest, viewer::ViewerExportRequest,
