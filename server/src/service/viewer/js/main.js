@@ -385,7 +385,7 @@ function draw() {
       drawFlat(n.removed, mvp, [1.0, 0.31, 0.85, 1], gl.POINTS, 9);
     }
   });
-  if (L.cage && dyn.cage) drawWide(dyn.cage, mvp, [0.72, 0.45, 1.0, 1], 1.5);
+  if (L.cage && dyn.cage) drawWide(dyn.cage, mvp, [0.55, 0.95, 0.75, 1], 1.5);
   if (L.knots) dyn.axes.forEach((a, j) => drawWide(a, mvp, AXIS_COLORS[j], 2.5));
   if (dyn.knot) {
     gl.disable(gl.DEPTH_TEST);
