@@ -69,8 +69,39 @@ pub struct BindingRequest {
     /// curvenets); frames then carry `joint_transforms`. Absent: none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub skin: Option<SkinSpec>,
+    /// A closed triangle cage around the mesh (Corda et al. 2020): with a
+    /// `skin` (which then needs its `skeleton`) the cage is coupled with the
+    /// skeleton and a frame's rest pose is the coupled result; without one
+    /// the cage alone deforms the mesh. Frames edit it with `rest_cage` and
+    /// `posed_cage_offsets`. Absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cage: Option<CageSpec>,
     #[serde(default)]
     pub options: BindingOptions,
+}
+
+/// A closed, consistently oriented triangle cage, its rest points at bind
+/// (the cage the projection pose is bound to).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CageSpec {
+    /// The rest cage at bind, one point per cage vertex (`#C`).
+    pub points: Vec<[f64; 3]>,
+    /// Three cage vertex indices per triangle, counter-clockwise seen from
+    /// outside; the cage must be closed (every edge shared by two triangles).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// The skeleton of a skin (UsdSkel `joints` topology and `bindTransforms`):
+/// needed when the skin is coupled with a cage (the cage relocates the joints).
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SkeletonSpec {
+    /// One parent per joint, an earlier joint's index, or -1 for a root.
+    pub parents: Vec<i64>,
+    /// One bind transform per joint in skeleton space (row-major 4×4, row
+    /// vectors, translation in the last row: USD's layout).
+    pub bind_transforms: Vec<[f64; 16]>,
 }
 
 /// How a skinned mesh blends its joints (UsdSkel `skel:skinningMethod`).
@@ -82,6 +113,9 @@ pub enum SkinMethod {
     ClassicLinear,
     /// `dualQuaternion`: dual-quaternion skinning.
     DualQuaternion,
+    /// Centres of rotation (Le & Hodgins 2016; `curvenet:skinningMethod`
+    /// `centersOfRotation`).
+    CentersOfRotation,
 }
 
 /// The mesh's skin (UsdSkel form) and the curvenets' spline skinning. A
@@ -114,6 +148,11 @@ pub struct SkinSpec {
     /// `curvenet bake` by default).
     #[serde(default)]
     pub flexible_iterations: u32,
+    /// The skeleton: required with a `cage` (the coupled rig relocates the
+    /// joints); without a cage it changes no result (it is still part of
+    /// the binding id).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skeleton: Option<SkeletonSpec>,
 }
 
 /// How one curvenet follows the skeleton.
@@ -161,8 +200,47 @@ impl BindingRequest {
                 })
                 .collect(),
             skin: None,
+            cage: None,
             options: BindingOptions::default(),
         }
+    }
+}
+
+impl BindingRequest {
+    /// The request with the stage's cage (`Stage::cage`): its rest points
+    /// at bind and its triangles.
+    pub fn with_cage(mut self, cage: &crate::CageData) -> Self {
+        self.cage = Some(CageSpec { points: cage.rest_points.clone(), triangles: cage.triangles.clone() });
+        self
+    }
+
+    /// The request with the mesh's UsdSkel skin (`Stage::skin_rig`), its
+    /// skeleton, and how each curvenet follows it (`curvenets`, binding
+    /// order, e.g. from `Stage::curvenet_skinning`), as `curvenet bake`
+    /// rigs it: `curvenet:skinningMethod` overrides UsdSkel's token.
+    pub fn with_skin(mut self, rig: &crate::usd::SkinRig, curvenets: Vec<CurvenetSkinSpec>) -> Self {
+        use crate::usd::CurvenetSkinningMethod as M;
+        use curvenet_core::skinning::SkinningMethod as S;
+        let method = match (rig.curvenet_method, rig.method) {
+            (Some(M::ClassicLinear), _) | (None, S::ClassicLinear) => SkinMethod::ClassicLinear,
+            (Some(M::DualQuaternion), _) | (None, S::DualQuaternion) => SkinMethod::DualQuaternion,
+            (Some(M::CentersOfRotation), _) | (None, S::CentersOfRotation) => SkinMethod::CentersOfRotation,
+        };
+        self.skin = Some(SkinSpec {
+            joints: rig.joints.len() as u32,
+            element_size: rig.element_size as u32,
+            joint_indices: rig.joint_indices.clone(),
+            joint_weights: rig.joint_weights.clone(),
+            geom_bind_transform: Some(rig.geom_bind_transform),
+            method,
+            curvenets: if curvenets.iter().all(|c| *c == CurvenetSkinSpec::None) { Vec::new() } else { curvenets },
+            flexible_iterations: 0,
+            skeleton: Some(SkeletonSpec {
+                parents: rig.parents.iter().map(|p| p.map_or(-1, i64::from)).collect(),
+                bind_transforms: rig.bind_transforms.clone(),
+            }),
+        });
+        self
     }
 }
 
@@ -245,6 +323,23 @@ pub struct BindingResponse {
     pub stats: BindingStats,
     pub timings: BindingTimings,
     pub warnings: Vec<Warning>,
+    /// The binding's cage, when it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cage: Option<CageStats>,
+}
+
+/// A binding's cage: counts, the MaxVol system and the memory of `Φ`.
+#[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
+pub struct CageStats {
+    /// Cage vertices (`#C`): the length of a frame's `rest_cage` and `posed_cage_offsets`.
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Mesh vertices chosen by MaxVol (the square system CageRev inverts).
+    pub maxvol_rows: usize,
+    /// Condition number of the MaxVol system.
+    pub condition: f64,
+    /// Bytes of the mean value coordinates `Φ` (`#V × #C`).
+    pub phi_bytes: u64,
 }
 
 /// Counts describing a binding.
@@ -523,6 +618,14 @@ pub struct FrameRequest {
     /// UsdSkel's skinning transforms); absent: no skinning this frame.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub joint_transforms: Option<Vec<[f64; 16]>>,
+    /// The rest cage this frame, one point per vertex of the binding's
+    /// `cage` (the mesh's space); absent: the cage at bind.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rest_cage: Option<Vec<[f64; 3]>>,
+    /// Posed-cage edits this frame, one offset per vertex of the binding's
+    /// `cage` (the skinned points' space); absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub posed_cage_offsets: Option<Vec<[f64; 3]>>,
 }
 
 /// One Curvenet Adjustment: a knot (a spline endpoint) moved in its
@@ -732,9 +835,10 @@ pub struct HealthResponse {
 #[derive(Debug, Clone, Serialize, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BinaryArray {
-    /// `posed` (with `index`: the curvenet), `rest`, `blend_shape_weights` or
-    /// `joint_transforms` (`[J, 16]`) in requests; `points` or `gradients`
-    /// in responses.
+    /// `posed` (with `index`: the curvenet), `rest`, `blend_shape_weights`,
+    /// `joint_transforms` (`[J, 16]`), `rest_cage` or `posed_cage_offsets`
+    /// (`[C, 3]`, one row per cage vertex) in requests; `points` or
+    /// `gradients` in responses.
     pub name: String,
     /// The curvenet of a `posed` array.
     #[serde(default, skip_serializing_if = "Option::is_none")]

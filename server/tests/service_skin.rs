@@ -75,6 +75,7 @@ impl Shot {
             },
             curvenets,
             flexible_iterations: 0,
+            skeleton: None,
         });
         Self { stage, mesh, rig, skeleton, request }
     }

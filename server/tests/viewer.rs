@@ -17,6 +17,9 @@ use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
 use serde_json::{Value, json};
 use tower::ServiceExt as _;
 
+#[allow(dead_code)] // the helpers this file does not use
+mod common;
+
 fn hand() -> BindingRequest {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/hand/hand_1k4.usda");
     let stage = Stage::open(&path).unwrap();
@@ -377,4 +380,151 @@ async fn a_refused_stage_is_drawn_with_the_element_its_error_names() {
     assert_eq!(status, StatusCode::NOT_FOUND, "{}", String::from_utf8_lossy(&body));
     let doc = json_of(&app, get("/openapi.json")).await;
     assert!(doc["paths"].get("/v1/viewer/stages/{index}/refusal").is_some());
+}
+
+/// `curvenet serve --open-stage SHOT` on a free port (killed when dropped).
+struct Served {
+    child: std::process::Child,
+    url: String,
+}
+
+impl Served {
+    fn open(shot: &str) -> Self {
+        use std::io::Read as _;
+        use std::process::{Command, Stdio};
+        let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2", "--open-stage", shot])
+            .env_remove("CURVENET_TOKEN")
+            .current_dir(common::repo())
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("curvenet serve starts");
+        let mut stdout = child.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = Vec::new();
+            let mut byte = [0u8; 1];
+            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
+                if byte[0] == b'\n' {
+                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
+                    line.clear();
+                } else {
+                    line.push(byte[0]);
+                }
+            }
+        });
+        let first = rx.recv_timeout(std::time::Duration::from_secs(120)).expect("the server prints its address");
+        let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
+        Self { child, url }
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// An opened caged stage (fixtures/shots/hand_caged: a cage coupled with
+/// the skeleton): the viewer's data carry the cage's wireframe, and each
+/// frame is what `curvenet bake` writes and carries the cage where it
+/// deforms the mesh: the posed cage of core's coupled rig, evaluated here
+/// from the stage's own data.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_opened_caged_stage_draws_its_posed_cage_and_bakes_alike() {
+    use curvenet_core::cage::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
+    use curvenet_core::skinning::{self, Influences, Skeleton, Skin, SkinningMethod};
+    const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
+    let stage = Stage::open(common::repo().join(CAGED)).unwrap();
+    let mesh = stage.deformed_meshes().unwrap().remove(0);
+    let n = mesh.projection_points.len();
+    let cage = stage.cage(&mesh).unwrap().unwrap();
+    let rig = stage.skin_rig(&mesh).unwrap().unwrap();
+    let skeleton = Skeleton::new(&rig.parents, &rig.bind_transforms).unwrap();
+    let mut influences =
+        Influences::new(n, rig.element_size, &rig.joint_indices, &rig.joint_weights, rig.joints.len()).unwrap();
+    influences.renormalize(1e-4);
+    let skin = Skin::new(influences, rig.geom_bind_transform, SkinningMethod::CentersOfRotation).unwrap();
+    let topology = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n).unwrap();
+    let coupled = CoupledRig::new(
+        &cage.rest_points,
+        &cage.triangles,
+        &mesh.projection_points,
+        &fan_triangles(&topology),
+        Some((&skeleton, &skin)),
+        CageRevApproximation::default(),
+    )
+    .unwrap();
+
+    let server = Served::open(CAGED);
+    let client = reqwest::Client::new();
+    let base = &server.url;
+    let get = |url: String| {
+        let client = client.clone();
+        async move {
+            let r = client.get(&url).send().await.unwrap();
+            assert_eq!(r.status(), 200, "GET {url}");
+            r.json::<Value>().await.unwrap()
+        }
+    };
+    let listed = get(format!("{base}/v1/viewer/stages")).await;
+    let times = floats(&listed["stages"][0]["times"]);
+    assert_eq!(times, (1..=10).map(f64::from).collect::<Vec<_>>(), "the cage's frames");
+    let opened = get(format!("{base}/v1/viewer/stages/0")).await;
+    let id = opened["binding"]["binding_id"].as_str().unwrap().to_string();
+    assert_eq!(opened["binding"]["cage"]["vertices"], cage.rest_points.len());
+    let data = get(format!("{base}/v1/bindings/{id}/viewer-data")).await;
+    let view = &data["cage"];
+    let c = cage.rest_points.len();
+    let bind: Vec<f64> = cage.rest_points.iter().flatten().map(|x| *x as f32 as f64).collect();
+    // f32 values written as their shortest decimals, read back as those f32.
+    let f32s = |v: &Value| floats(v).into_iter().map(|x| x as f32 as f64).collect::<Vec<f64>>();
+    assert!(f32s(&view["points"]) == bind, "the bind cage");
+    assert_eq!(ints(&view["triangles"]).len(), 3 * cage.triangles.len());
+    // A closed triangle cage has 3T/2 edges, each drawn once.
+    let edges = ints(&view["edges"]);
+    assert_eq!(edges.len() / 2, 3 * cage.triangles.len() / 2);
+    assert!(edges.iter().all(|&v| (v as usize) < c));
+
+    let diagonal = data["diagonal"].as_f64().unwrap();
+    let dir = common::temp_dir("viewer", "caged");
+    let out = dir.join("baked.usda");
+    let run = common::curvenet(&["bake", CAGED, "--out", out.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", common::stderr(&run));
+    let baked = curvenet_schema::usd::read_points_overrides(&out).unwrap().prims.remove(0).samples;
+    std::fs::remove_dir_all(&dir).unwrap();
+    let mut moved = 0.0f64;
+    for (k, &t) in times.iter().enumerate() {
+        let frame = get(format!("{base}/v1/viewer/stages/0/frames/{k}")).await;
+        let shown = f32s(&frame["points"]);
+        let bake: Vec<f64> = baked[k].1.iter().flat_map(|p| p.map(f64::from)).collect();
+        assert_eq!(baked[k].0, t);
+        let d = max_diff(&shown, &bake);
+        assert!(d <= 1e-6 * diagonal, "frame {t}: the viewer is {d} off the bake");
+        // The posed cage of the coupled rig at this frame, from the stage's data.
+        let local = stage.joint_local_transforms(&rig, Some(t)).unwrap();
+        let mut transforms = vec![skinning::IDENTITY; local.len()];
+        skeleton.skinning_transforms(&local, &mut transforms).unwrap();
+        assert_eq!(stage.skel_to_mesh_transform(&rig, Some(t)).unwrap(), skinning::IDENTITY);
+        let edits = cage.frame(Some(t));
+        let mut ws = CoupledWorkspace::default();
+        let mut rest = vec![[0.0; 3]; n];
+        let input = CageFrame {
+            base: None,
+            rest_cage: edits.rest_cage(),
+            joint_transforms: Some(&transforms),
+            posed_cage_offsets: edits.posed_cage_offsets(),
+        };
+        coupled.evaluate(&input, &mut ws, &mut rest).unwrap();
+        let want: Vec<f64> = ws.posed_cage().iter().flatten().copied().collect();
+        let got = f32s(&frame["cage"]);
+        assert_eq!(got.len(), 3 * c, "frame {t}: one point per cage vertex");
+        let e = max_diff(&got, &want);
+        assert!(e <= 1e-6 * diagonal, "frame {t}: the drawn cage is {e} off the posed cage");
+        moved = moved.max(max_diff(&got, &bind));
+    }
+    assert!(moved > 1e-2 * diagonal, "the cage drawn moves with the frames ({moved})");
 }

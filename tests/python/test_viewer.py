@@ -780,3 +780,47 @@ def test_a_knot_picked_by_a_click_and_adjusted_bakes_to_the_points_shown(adjuste
     assert prim and prim.GetTypeName() == "CurvenetAdjustment"
     assert prim.GetAttribute("curvenet:knot").Get() == knot
     assert not page.errors(), page.errors()
+
+
+CAGED = ROOT / "fixtures" / "shots" / "hand_caged" / "shot.usda"
+
+
+@pytest.fixture(scope="module")
+def caged_server():
+    yield from _serve(CAGED)
+
+
+def _toggle(page, layer, on):
+    page.eval(f"(() => {{ const b = document.querySelector('[data-layer={layer}]'); b.checked = {str(on).lower()};"
+              " b.dispatchEvent(new Event('change')); })()")
+    page.eval("new Promise(r => requestAnimationFrame(() => requestAnimationFrame(() => r(true))))")
+
+
+def test_the_cage_of_a_caged_stage_is_drawn_as_a_layer(caged_server, tools):
+    page = Page(tools)
+    _open(page, f"{caged_server}/viewer?stage=0", "ready")
+    # The cage layer is offered, and on, for a binding with a cage.
+    assert page.eval("document.getElementById('cage-layer').hidden") is False
+    assert page.eval("document.querySelector('[data-layer=cage]').checked") is True
+    # A posed frame with rest-cage and posed-cage edits (frame 10 of 1..10).
+    times = _get(f"{caged_server}/v1/viewer/stages")["stages"][0]["times"]
+    k = times.index(10.0)
+    frame = _get(f"{caged_server}/v1/viewer/stages/0/frames/{k}")
+    binding = _get(f"{caged_server}/v1/viewer/stages/0")["binding"]
+    assert len(frame["cage"]) == 3 * binding["cage"]["vertices"]
+    _set_frame(page, k)
+    _, with_cage = page.screenshot()
+    _toggle(page, "cage", False)
+    _, without = page.screenshot()
+    changed = _changed(with_cage, without)
+    assert changed > 0.002, f"the cage layer changes only {changed:.2%} of the pixels"
+    # The cage's own colour is what the layer adds.
+    r, g, b = (with_cage[:, :, i].astype(int) for i in range(3))
+    mint = (abs(r - 140) < 30) & (g > 200) & (abs(b - 191) < 30)
+    r, g, b = (without[:, :, i].astype(int) for i in range(3))
+    mint_without = (abs(r - 140) < 30) & (g > 200) & (abs(b - 191) < 30)
+    assert mint.sum() > 200 and mint_without.sum() < 0.1 * mint.sum(), (mint.sum(), mint_without.sum())
+    _toggle(page, "cage", True)
+    _, again = page.screenshot()
+    assert _changed(with_cage, again) < 0.002, "the cage drawn again differs"
+    assert not page.errors(), page.errors()

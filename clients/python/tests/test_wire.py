@@ -13,7 +13,10 @@ import pytest
 
 from curvenet_client import (
     BadInputError,
+    BindingRequest,
+    Cage,
     CurvenetError,
+    CurvenetSpec,
     Frame,
     NotFoundError,
     PayloadTooLargeError,
@@ -24,7 +27,7 @@ from curvenet_client import (
     UnknownBindingError,
 )
 from curvenet_client.errors import CODE_FAMILIES, error_from_response
-from curvenet_client.frames import decode_frames, encode_frames
+from curvenet_client.frames import decode_frames, encode_frames, frame_json
 
 
 
@@ -117,6 +120,35 @@ def test_binary_request_matches_the_documented_framing() -> None:
     assert [len(f["arrays"]) for f in json.loads(batch[4 : 4 + h])["frames"]] == [3, 0]
     with pytest.raises(ValueError, match=r"posed\[0\] has shape"):
         encode_frames([Frame(posed=[np.zeros((3, 2))])], gradients=False, batch=False)
+
+
+def test_cage_arrays_travel_in_both_forms_and_the_binding_carries_the_cage() -> None:
+    rest_cage = np.arange(12, dtype=np.float64).reshape(4, 3) / 3
+    offsets = np.full((4, 3), 0.25)
+    frame = Frame(rest_cage=rest_cage, posed_cage_offsets=offsets)
+    raw = encode_frames([frame], gradients=False, batch=False)
+    (h,) = struct.unpack_from("<I", raw)
+    header = json.loads(raw[4 : 4 + h])
+    assert header["arrays"] == [
+        {"name": "rest_cage", "shape": [4, 3]},
+        {"name": "posed_cage_offsets", "shape": [4, 3]},
+    ]
+    data = np.frombuffer(raw, dtype="<f4", offset=4 + h)
+    assert np.array_equal(data[:12], rest_cage.astype(np.float32).ravel())
+    assert np.array_equal(data[12:], np.full(12, 0.25, dtype=np.float32))
+    doc = frame_json(frame, gradients=False)
+    assert doc["rest_cage"] == rest_cage.tolist() and doc["posed_cage_offsets"] == offsets.tolist()
+    assert "rest_cage" not in frame_json(Frame(), gradients=False)
+    with pytest.raises(ValueError, match=r"rest_cage has shape"):
+        encode_frames([Frame(rest_cage=np.zeros((4, 2)))], gradients=False, batch=False)
+
+    tetra = Cage([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    request = BindingRequest([3], [0, 1, 2], np.eye(3), [CurvenetSpec(np.zeros((4, 3)), [[0, 1, 2, 3]])], cage=tetra)
+    doc = request.to_json()
+    assert doc["cage"] == {"points": tetra.points.tolist(), "triangles": tetra.triangles.tolist()}
+    again = BindingRequest.from_json(doc)
+    assert again.cage is not None and np.array_equal(again.cage.triangles, tetra.triangles)
+    assert "cage" not in BindingRequest.from_json({k: v for k, v in doc.items() if k != "cage"}).to_json()
 
 
 def test_adjustments_travel_in_the_header_and_orientations_decode() -> None:

@@ -10,8 +10,8 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser as _;
-use curvenet_schema::usd::Stage;
-use curvenet_schema::wire::{BindingRequest, FrameRequest};
+use curvenet_schema::usd::{CurvenetSkinning, Stage};
+use curvenet_schema::wire::{BindingRequest, CurvenetSkinSpec, FrameRequest};
 use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use curvenet_server::{
     AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, StageAdjustment, StageFrame, ViewerStage,
@@ -314,7 +314,7 @@ type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<StageFrame, Stri
 /// frames on request. Fails, naming the stage and prim, when the stage
 /// breaks the contract.
 pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
-    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String, Vec<Vec<StageAdjustment>>);
+    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String, Vec<Vec<StageAdjustment>>, Vec<Caged>);
     let (setup_tx, setup_rx) = std::sync::mpsc::channel::<CliResult<Opened>>();
     let (query_tx, query_rx) = std::sync::mpsc::channel::<FrameQuery>();
     let owned = path.to_path_buf();
@@ -332,7 +332,9 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 let name = stage.path().to_string();
                 let adjustments =
                     inputs.iter().map(|(_, nets, _)| stage_adjustments(&stage, nets)).collect::<CliResult<Vec<_>>>()?;
-                Ok((stage, (inputs, times, name, adjustments)))
+                let caged =
+                    inputs.iter().map(|(m, nets, _)| Caged::read(&stage, m, nets)).collect::<CliResult<Vec<_>>>()?;
+                Ok((stage, (inputs, times, name, adjustments, caged)))
             })();
             let (stage, opened) = match opened {
                 Ok(x) => x,
@@ -343,6 +345,7 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             };
             let inputs = opened.0.clone();
             let times = opened.1.clone();
+            let caged = opened.4.clone();
             // Per mesh, per curvenet (binding order): its adjustment prims.
             let per_curvenet: Vec<Vec<Vec<AdjustmentData>>> = inputs
                 .iter()
@@ -359,11 +362,14 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             // Serve frame reads until every ViewerStage (every sender) is gone.
             for (m, k, answer) in query_rx {
                 let (mesh, nets, reads_rest) = &inputs[m];
-                let _ = answer.send(read_frame(&stage, mesh, nets, *reads_rest, &per_curvenet[m], times[k]));
+                let _ = answer.send(
+                    read_frame(&stage, mesh, nets, *reads_rest, &per_curvenet[m], times[k])
+                        .and_then(|f| caged[m].frame(&stage, f, times[k])),
+                );
             }
         })
         .map_err(|e| CliError::Io { context: "starting the stage reader thread".into(), source: e })?;
-    let (inputs, times, name, mut adjustments) = setup_rx.recv().map_err(|_| {
+    let (inputs, times, name, mut adjustments, caged) = setup_rx.recv().map_err(|_| {
         CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display()))
     })??;
     let query_tx = std::sync::Mutex::new(query_tx);
@@ -392,12 +398,78 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 mesh.path.clone(),
                 curvenets,
                 times.clone(),
-                BindingRequest::from_stage(&mesh, &nets),
+                caged[m].request(BindingRequest::from_stage(&mesh, &nets)),
                 frame,
             )
             .with_adjustments(std::mem::take(&mut adjustments[m]))
         })
         .collect())
+}
+
+/// A caged mesh's cage (`rel curvenet:cage`) and, when the mesh is skinned,
+/// its UsdSkel rig, coupled with the cage as `curvenet bake` couples them.
+/// A mesh without a cage is opened without its rig (the viewer does not
+/// skin plain rigged meshes).
+#[derive(Clone, Default)]
+struct Caged {
+    cage: Option<curvenet_schema::CageData>,
+    skin: Option<(Arc<super::rig::JointReader>, Vec<CurvenetSkinSpec>)>,
+}
+
+impl Caged {
+    fn read(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData]) -> CliResult<Self> {
+        let Some(cage) = stage.cage(mesh)? else { return Ok(Self::default()) };
+        let skin = match stage.skin_rig(mesh)? {
+            None => None,
+            Some(rig) => {
+                let skeleton = curvenet_core::skinning::Skeleton::new(&rig.parents, &rig.bind_transforms)
+                    .map_err(|source| CliError::Core { context: rig.skeleton.clone(), source })?;
+                let curvenets = nets
+                    .iter()
+                    .map(|n| {
+                        Ok(match stage.curvenet_skinning(n)? {
+                            CurvenetSkinning::None => CurvenetSkinSpec::None,
+                            CurvenetSkinning::FromMesh => CurvenetSkinSpec::Mesh,
+                            CurvenetSkinning::Weights { element_size, joint_indices, joint_weights } => {
+                                CurvenetSkinSpec::Weights {
+                                    element_size: element_size as u32,
+                                    joint_indices,
+                                    joint_weights,
+                                }
+                            }
+                        })
+                    })
+                    .collect::<CliResult<Vec<_>>>()?;
+                Some((Arc::new(super::rig::JointReader { rig, skeleton }), curvenets))
+            }
+        };
+        Ok(Self { cage: Some(cage), skin })
+    }
+
+    /// The binding request with the cage and the rig.
+    fn request(&self, mut request: BindingRequest) -> BindingRequest {
+        if let Some((joints, curvenets)) = &self.skin {
+            request = request.with_skin(&joints.rig, curvenets.clone());
+        }
+        match &self.cage {
+            Some(cage) => request.with_cage(cage),
+            None => request,
+        }
+    }
+
+    /// `frame` with the joint transforms and the cage's edits at `time`.
+    fn frame(&self, stage: &Stage, mut frame: StageFrame, time: f64) -> Result<StageFrame, String> {
+        if let Some((joints, _)) = &self.skin {
+            frame.request.joint_transforms =
+                Some(joints.read_transforms(stage, Some(time)).map_err(|e| e.to_string())?);
+        }
+        if let Some(cage) = &self.cage {
+            let edits = cage.frame(Some(time));
+            frame.request.rest_cage = edits.rest_cage().map(<[_]>::to_vec);
+            frame.request.posed_cage_offsets = edits.posed_cage_offsets().map(<[_]>::to_vec);
+        }
+        Ok(frame)
+    }
 }
 
 /// The `CurvenetAdjustment` prims of a mesh's curvenets (`nets`, binding

@@ -40,6 +40,8 @@ pub struct Expected<'a> {
     pub blend_shapes: usize,
     /// Joints of the binding's skin (`None`: no skin).
     pub joints: Option<usize>,
+    /// Vertices of the binding's cage (`None`: no cage).
+    pub cage: Option<usize>,
     /// Most frames a batch may hold (see `bounded`).
     pub max_frames: usize,
 }
@@ -117,6 +119,8 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
                     frame.posed[k] = Some(points(raw));
                 }
                 Kind::Rest => frame.rest = Some(points(raw)),
+                Kind::RestCage => frame.rest_cage = Some(points(raw)),
+                Kind::PosedCageOffsets => frame.posed_cage_offsets = Some(points(raw)),
                 Kind::Weights => {
                     frame.weights =
                         Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect())
@@ -145,12 +149,14 @@ enum Kind {
     Rest,
     Weights,
     Joints,
+    RestCage,
+    PosedCageOffsets,
 }
 
 impl Kind {
     fn width(self) -> usize {
         match self {
-            Kind::Posed(_) | Kind::Rest => 3,
+            Kind::Posed(_) | Kind::Rest | Kind::RestCage | Kind::PosedCageOffsets => 3,
             Kind::Weights => 1,
             Kind::Joints => 16,
         }
@@ -161,6 +167,8 @@ impl Kind {
             Kind::Rest => "rest",
             Kind::Weights => "blend_shape_weights",
             Kind::Joints => "joint_transforms",
+            Kind::RestCage => "rest_cage",
+            Kind::PosedCageOffsets => "posed_cage_offsets",
         }
     }
 }
@@ -201,9 +209,12 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
             "rest" => Kind::Rest,
             "blend_shape_weights" => Kind::Weights,
             "joint_transforms" => Kind::Joints,
+            "rest_cage" => Kind::RestCage,
+            "posed_cage_offsets" => Kind::PosedCageOffsets,
             other => {
                 return Err(malformed(format!(
-                    "arrays[{a}] is named {other:?}; expected posed (with index), rest, blend_shape_weights or joint_transforms"
+                    "arrays[{a}] is named {other:?}; expected posed (with index), rest, blend_shape_weights, \
+                     joint_transforms, rest_cage or posed_cage_offsets"
                 )));
             }
         };
@@ -245,6 +256,17 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
                 };
                 (joints, format!("joint_transforms has {rows} transforms, but the binding's skin has {joints} joints"))
             }
+            Kind::RestCage | Kind::PosedCageOffsets => {
+                let name = kind.name();
+                let Some(cage) = expected.cage else {
+                    return Err(ServiceError::new(
+                        Code::Unsupported,
+                        format!("arrays[{a}]: {name}, but the binding has no cage"),
+                    )
+                    .detail(|d| d.what = Some(name.into())));
+                };
+                (cage, format!("{name} has {rows} points, but the binding's cage has {cage} vertices"))
+            }
             Kind::Weights => (
                 expected.blend_shapes,
                 format!(
@@ -254,7 +276,12 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
             ),
         };
         if rows != want as u64 {
-            return Err(ServiceError::new(Code::CountMismatch, format!("arrays[{a}]: {message}")));
+            let name = kind.name();
+            return Err(ServiceError::new(Code::CountMismatch, format!("arrays[{a}]: {message}")).detail(|d| {
+                d.what = Some(name.into());
+                d.expected = Some(want);
+                d.got = usize::try_from(rows).ok();
+            }));
         }
         plan.push(Planned { kind, rows: want });
     }

@@ -6,15 +6,16 @@
 
 use curvenet_core::binding::CutOptions;
 use curvenet_core::blend_shapes::BlendShape;
-use curvenet_core::deformer::Rig;
+use curvenet_core::deformer::{CageInput, Rig};
 use curvenet_core::skinning::{
-    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skin, SkinningMethod, SplineSkinning,
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skeleton, Skin, SkinningMethod, SplineSkinning,
     SplineSkinningOptions, SurfaceWeights,
 };
 use curvenet_core::{BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, PolyMesh};
 use curvenet_core::{ClosestPointBvh, skinning};
 use curvenet_schema::wire::{
-    BindingRequest, BindingResponse, BindingStats, BindingTimings, CurvenetSkinSpec, SkinMethod, SkinSpec, Warning,
+    BindingRequest, BindingResponse, BindingStats, BindingTimings, CageStats, CurvenetSkinSpec, SkinMethod, SkinSpec,
+    Warning,
 };
 
 use crate::cache::{Entry, Key, hex};
@@ -124,6 +125,7 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
             }
         }
     }
+    validate_cage(req)?;
     let mut seen = Vec::new();
     for (k, s) in req.blend_shapes.iter().enumerate() {
         check_points(&s.offsets, &format!("blend_shapes[{k}].offsets"))?;
@@ -162,6 +164,94 @@ pub fn validate(req: &BindingRequest) -> Result<(), ServiceError> {
                 }
                 seen[word] |= bit;
             }
+        }
+    }
+    Ok(())
+}
+
+/// Checks the cage and the skeleton cheaply: the cage's points, its
+/// triangles' indices, and a skeleton with a cage and a skin (the coupled
+/// rig needs it) whose parents and bind transforms agree. The cage's
+/// closedness and orientation are core's (`Cage::new`), named there.
+fn validate_cage(req: &BindingRequest) -> Result<(), ServiceError> {
+    if let Some(skeleton) = req.skin.as_ref().and_then(|s| s.skeleton.as_ref()) {
+        let n = skeleton.parents.len();
+        if skeleton.bind_transforms.len() != n {
+            return Err(ServiceError::new(
+                Code::CountMismatch,
+                format!(
+                    "skin.skeleton.bind_transforms has {} transforms, but skin.skeleton.parents has {n} joints",
+                    skeleton.bind_transforms.len()
+                ),
+            )
+            .detail(|d| {
+                d.what = Some("skin.skeleton.bind_transforms".into());
+                d.expected = Some(n);
+                d.got = Some(skeleton.bind_transforms.len());
+            }));
+        }
+        if let Some(skin) = &req.skin
+            && skin.joints as usize != n
+        {
+            return Err(ServiceError::new(
+                Code::CountMismatch,
+                format!("skin.skeleton.parents has {n} joints, but skin.joints is {}", skin.joints),
+            )
+            .detail(|d| {
+                d.what = Some("skin.skeleton.parents".into());
+                d.expected = Some(skin.joints as usize);
+                d.got = Some(n);
+            }));
+        }
+        for (j, &p) in skeleton.parents.iter().enumerate() {
+            if p != -1 && !(0..j as i64).contains(&p) {
+                return Err(ServiceError::new(
+                    Code::IndexOutOfRange,
+                    format!("skin.skeleton.parents[{j}] is {p}: a parent is an earlier joint, or -1 for a root"),
+                )
+                .detail(|d| (d.what, d.index) = (Some("skin.skeleton.parents".into()), Some(j))));
+            }
+        }
+        if let Some(j) =
+            skeleton.bind_transforms.iter().position(|m| !m.iter().all(|x| x.is_finite() && x.abs() <= MAX_COORDINATE))
+        {
+            return Err(ServiceError::new(
+                Code::NonFinite,
+                format!(
+                    "skin.skeleton.bind_transforms[{j}] has a value that is not finite or beyond {MAX_COORDINATE:e}"
+                ),
+            )
+            .detail(|d| (d.what, d.index) = (Some("skin.skeleton.bind_transforms".into()), Some(j))));
+        }
+    }
+    let Some(cage) = &req.cage else { return Ok(()) };
+    if let Some(skin) = &req.skin
+        && skin.skeleton.is_none()
+    {
+        return Err(ServiceError::new(
+            Code::InvalidParameter,
+            format!(
+                "skin.skeleton is required with a cage: the cage is coupled with the skin's {} joints and relocates them \
+                 (give parents and bind_transforms)",
+                skin.joints
+            ),
+        )
+        .detail(|d| d.what = Some("skin.skeleton".into())));
+    }
+    check_points(&cage.points, "cage.points")?;
+    let c = cage.points.len();
+    for (t, tri) in cage.triangles.iter().enumerate() {
+        if let Some(&v) = tri.iter().find(|&&v| v as usize >= c) {
+            return Err(ServiceError::new(
+                Code::IndexOutOfRange,
+                format!("cage.triangles[{t}] refers to cage vertex {v}, but the cage has {c} points"),
+            )
+            .detail(|d| {
+                d.what = Some("cage.triangles".into());
+                d.index = Some(t);
+                d.face = Some(t);
+                d.vertex = Some(v);
+            }));
         }
     }
     Ok(())
@@ -250,7 +340,7 @@ pub fn build(
         curvenets: &curvenets,
         blend_shapes,
         skinning: rig,
-        cage: None,
+        cage: req.cage.as_ref().map(|c| CageInput { points: &c.points, triangles: &c.triangles }),
         options: DeformerOptions::default().with_bind(options.bind_options(cancel)),
     };
     let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;
@@ -262,12 +352,21 @@ pub fn build(
     let b = deformer.binding();
     let workspace_bytes = deformer.prepare_workspace();
     let keep = keep.max(1);
+    // The cage's `Φ` (`#V × #C`) dominates a caged binding's memory.
+    let cage = deformer.cage().map(|c| CageStats {
+        vertices: c.n_cage_vertices(),
+        triangles: c.n_cage_triangles(),
+        maxvol_rows: c.maxvol_rows().len(),
+        condition: c.condition(),
+        phi_bytes: c.phi_bytes() as u64,
+    });
     let size_bytes = (b.heap_bytes()
         + std::mem::size_of::<Binding>()
         + shapes_bytes
         + n * std::mem::size_of::<[f64; 3]>()
         + keep * workspace_bytes
-        + ENTRY_OVERHEAD) as u64;
+        + ENTRY_OVERHEAD) as u64
+        + cage.as_ref().map_or(0, |c| c.phi_bytes);
     let t = deformer.timings();
     let response = BindingResponse {
         binding_id: hex(&key),
@@ -280,6 +379,7 @@ pub fn build(
         stats: BindingStats::from(&b.stats()),
         timings: BindingTimings::new(t.analysis_ms, &t.binding, t.total_ms),
         warnings: b.warnings().iter().map(Warning::from).collect(),
+        cage,
     };
     Ok(Entry {
         id: response.binding_id.clone(),
@@ -359,14 +459,17 @@ fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError>
     let method = match skin.method {
         SkinMethod::ClassicLinear => SkinningMethod::ClassicLinear,
         SkinMethod::DualQuaternion => SkinningMethod::DualQuaternion,
+        SkinMethod::CentersOfRotation => SkinningMethod::CentersOfRotation,
+    };
+    let skeleton = match &skin.skeleton {
+        None => None,
+        Some(s) => {
+            let parents: Vec<Option<u32>> = s.parents.iter().map(|&p| u32::try_from(p).ok()).collect();
+            Some(Skeleton::new(&parents, &s.bind_transforms).map_err(bind("skin.skeleton".into()))?)
+        }
     };
     let skin_core = Skin::new(influences, geom_bind, method).map_err(bind("skin".into()))?;
-    Ok(Rig {
-        skin: skin_core,
-        curvenets: splines,
-        flexible_iterations: skin.flexible_iterations as usize,
-        skeleton: None,
-    })
+    Ok(Rig { skin: skin_core, curvenets: splines, flexible_iterations: skin.flexible_iterations as usize, skeleton })
 }
 
 /// Bytes of an entry besides its measured arrays: the entry, its strings

@@ -27,7 +27,7 @@ use crate::state::{AppState, blocking};
         (status = 408, description = "request_timeout: the body stalled or arrived too slowly", body = ErrorBody),
         (status = 413, description = "payload_too_large", body = ErrorBody),
         (status = 415, description = "unsupported_media_type", body = ErrorBody),
-        (status = 422, description = "The mesh, a curvenet or the binding is invalid (count_mismatch, non_finite, index_out_of_range, empty_input, invalid_mesh, invalid_curvenet, invalid_parameter, binding_failed; details name the curvenet, spline, segment, sample, face, vertex, ...), or limit_exceeded (density, segments, binding time)", body = ErrorBody),
+        (status = 422, description = "The mesh, a curvenet or the binding is invalid (count_mismatch, non_finite, index_out_of_range, empty_input, invalid_mesh, invalid_curvenet, invalid_parameter, binding_failed; details name the curvenet, spline, segment, sample, face, vertex, ...; a bad cage names its face, edge or vertex with what = cage; a cage with a skin but no skin.skeleton is invalid_parameter naming skin.skeleton), or limit_exceeded (density, segments, binding time)", body = ErrorBody),
         (status = 503, description = "saturated, or unavailable: the server stopped the binding to shut down (Retry-After)", body = ErrorBody),
         (status = 507, description = "cache_too_small", body = ErrorBody),
     ))]

@@ -9,7 +9,8 @@
 //! of a frame depends on: the topology, the projection points as f64 bits,
 //! each curvenet (pool as f64 bits, splines, sample density), the effective
 //! options (defaults filled in, so an explicit default and an absent option
-//! give one id) and, only when there are any, the blend shapes. Every array
+//! give one id) and, only when there are any, the blend shapes, the skin
+//! (with its skeleton) and the cage (points as f64 bits, triangles). Every array
 //! is preceded by its length, so no two requests encode alike.
 
 use std::sync::Arc;
@@ -290,6 +291,20 @@ pub fn binding_key(req: &BindingRequest, options: &EffectiveOptions) -> Key {
                 }
             }
         }
+        if let Some(skeleton) = &skin.skeleton {
+            // Absent, nothing is written: the ids of skins without one are unchanged.
+            w.bytes(b"skeleton");
+            w.u64(skeleton.parents.len() as u64);
+            skeleton.parents.iter().for_each(|p| w.bytes(&p.to_le_bytes()));
+            w.u64(skeleton.bind_transforms.len() as u64);
+            skeleton.bind_transforms.iter().flatten().for_each(|x| w.f64(*x));
+        }
+    }
+    if let Some(cage) = &req.cage {
+        w.bytes(b"cage");
+        w.points(&cage.points);
+        w.u64(cage.triangles.len() as u64);
+        cage.triangles.iter().flatten().for_each(|i| w.bytes(&i.to_le_bytes()));
     }
     w.finish()
 }

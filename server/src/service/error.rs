@@ -284,8 +284,37 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
         }
         // The cage of a coupled cage-and-skeleton rig (or a frame's cage
         // arrays): the message names the face, edge, vertex or field.
-        E::Cage(_) => {
+        E::Cage(c) => {
+            use curvenet_core::cage::CageError as C;
             d.what = what("cage");
+            match c {
+                C::IndexOutOfRange { face, vertex, .. } => {
+                    (d.face, d.vertex) = (Some(*face), Some(*vertex));
+                    return Code::IndexOutOfRange;
+                }
+                C::DegenerateFace { face, vertices } => (d.face, d.vertices) = (Some(*face), Some(vertices.to_vec())),
+                C::NonFinite { index, .. } => {
+                    d.index = Some(*index);
+                    return Code::NonFinite;
+                }
+                C::UnusedVertex { vertex } => d.vertex = Some(*vertex as u32),
+                C::OpenEdge { a, b, face } => (d.edge, d.face) = (Some([*a, *b]), Some(*face)),
+                C::NonManifoldEdge { a, b, faces } => (d.edge, d.faces) = (Some([*a, *b]), Some(faces.clone())),
+                C::FlippedFace { face, neighbour, a, b } => {
+                    (d.edge, d.face, d.faces) =
+                        (Some([*a, *b]), Some(*face), Some(vec![*face as u32, *neighbour as u32]));
+                }
+                C::SingularMaxVol { vertex, .. } => d.vertex = Some(*vertex as u32),
+                C::Count { what: w, expected, got } => {
+                    (d.what, d.expected, d.got) = (what(w), Some(*expected), Some(*got));
+                    return Code::CountMismatch;
+                }
+                C::SingularCageRev { .. } | C::JointCoordinates { .. } => return Code::DegeneratePose,
+                C::UnlocalizedJoint { .. } | C::Missing { .. } => return Code::InvalidParameter,
+                C::TooSmall { .. } | C::InsideOut { .. } => {}
+                // `CageError` is non-exhaustive: a new variant is a bad cage until named here.
+                _ => {}
+            }
             Code::InvalidMesh
         }
         E::Empty { what: w } => {

@@ -45,6 +45,10 @@ pub struct Frame {
     pub orientations: bool,
     /// The frame's skinning transforms, one per joint of the binding's skin.
     pub joint_transforms: Option<Vec<[f64; 16]>>,
+    /// The rest cage this frame, one point per cage vertex of the binding.
+    pub rest_cage: Option<Vec<[f64; 3]>>,
+    /// Posed-cage edits this frame, one offset per cage vertex of the binding.
+    pub posed_cage_offsets: Option<Vec<[f64; 3]>>,
 }
 
 /// A wire adjustment as core's: absent fields are no change.
@@ -72,6 +76,8 @@ impl From<FrameRequest> for Frame {
             adjustments: r.adjustments.iter().map(adjustment).collect(),
             orientations: r.orientations,
             joint_transforms: r.joint_transforms,
+            rest_cage: r.rest_cage,
+            posed_cage_offsets: r.posed_cage_offsets,
         }
     }
 }
@@ -114,7 +120,7 @@ impl Solved {
         (status = 409, description = "topology_changed", body = ErrorBody),
         (status = 413, description = "payload_too_large", body = ErrorBody),
         (status = 415, description = "unsupported_media_type", body = ErrorBody),
-        (status = 422, description = "count_mismatch, non_finite, index_out_of_range, invalid_parameter, degenerate_pose; a bad adjustment names it (details: adjustment, curvenet, control_point); details: curvenet, spline, segment, control_point, what, index", body = ErrorBody),
+        (status = 422, description = "count_mismatch, non_finite, index_out_of_range, invalid_parameter, degenerate_pose; a bad adjustment names it (details: adjustment, curvenet, control_point); rest_cage or posed_cage_offsets on a binding without a cage is unsupported, a wrong count count_mismatch (details.what names the array); details: curvenet, spline, segment, control_point, what, index", body = ErrorBody),
         (status = 503, description = "saturated (Retry-After)", body = ErrorBody),
     ))]
 pub(crate) async fn post_frames(
@@ -186,8 +192,9 @@ fn parse(
             let b = entry.binding();
             let pools: Vec<usize> = (0..b.n_curvenets()).map(|k| b.n_control_points(k)).collect();
             let joints = entry.deformer.rig().map(|r| r.skin.influences().n_joints());
+            let cage = entry.deformer.cage().map(|c| c.n_cage_vertices());
             let expected =
-                binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), joints, max_frames };
+                binary::Expected { pools: &pools, vertices, blend_shapes: entry.n_shapes(), joints, cage, max_frames };
             let (frames, is_batch) = binary::parse(bytes, &expected)?;
             if is_batch != batch {
                 return Err(ServiceError::new(
@@ -314,6 +321,31 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
             .detail(|d| d.what = Some("orientations".into())));
         }
     }
+    if frame.orientations && entry.deformer.cage().is_some() {
+        return Err(ServiceError::new(
+            Code::Unsupported,
+            "orientations with a cage: knot orientations of a caged binding's frames are not answered yet",
+        )
+        .detail(|d| d.what = Some("orientations".into())));
+    }
+    for (what, cage) in [("rest_cage", &frame.rest_cage), ("posed_cage_offsets", &frame.posed_cage_offsets)] {
+        let Some(cage) = cage else { continue };
+        let Some(vertices) = entry.deformer.cage().map(|c| c.n_cage_vertices()) else {
+            return Err(ServiceError::new(
+                Code::Unsupported,
+                format!("{what}: the binding has no cage (post the binding with `cage` to edit it per frame)"),
+            )
+            .detail(|d| d.what = Some(what.into())));
+        };
+        if cage.len() != vertices {
+            return Err(ServiceError::new(
+                Code::CountMismatch,
+                format!("{what} has {} points, but the binding's cage has {vertices} vertices", cage.len()),
+            )
+            .detail(count(what, vertices, cage.len())));
+        }
+        check_points(cage, what)?;
+    }
     if let Some(w) = &frame.weights {
         let n_shapes = entry.n_shapes();
         if w.len() != n_shapes {
@@ -361,8 +393,8 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
         },
         adjustments: &frame.adjustments,
         joint_transforms: frame.joint_transforms.as_deref(),
-        rest_cage: None,
-        posed_cage_offsets: None,
+        rest_cage: frame.rest_cage.as_deref(),
+        posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
     };
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
@@ -401,7 +433,8 @@ pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usiz
             },
             adjustments: &frame.adjustments,
             joint_transforms: frame.joint_transforms.as_deref(),
-            ..Default::default()
+            rest_cage: frame.rest_cage.as_deref(),
+            posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
         })
         .collect();
     let mut points = vec![vec![[0.0; 3]; n]; frames.len()];

@@ -68,7 +68,7 @@ fn config(cases: u32) -> Config {
 
 const POOLS: [usize; 2] = [5, 3];
 const EXPECTED: Expected<'static> =
-    Expected { pools: &POOLS, vertices: 10, blend_shapes: 2, joints: Some(3), max_frames: 50 };
+    Expected { pools: &POOLS, vertices: 10, blend_shapes: 2, joints: Some(3), cage: Some(4), max_frames: 50 };
 
 /// An array entry of a binary header, hostile or not.
 fn array() -> impl Strategy<Value = Value> {

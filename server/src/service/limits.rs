@@ -27,7 +27,8 @@
 //! Beyond a limit the request gets 422 `limit_exceeded` naming the
 //! curvenet, the predicted amount, the limit and its flag. A binding whose
 //! predicted size (a lower bound: [`BYTES_PER_CORNER`] per input face
-//! corner and [`BYTES_PER_SEGMENT`] per segment) is larger than the whole
+//! corner, [`BYTES_PER_SEGMENT`] per segment and, with a cage, its mean
+//! value coordinates: 8 bytes per mesh vertex per cage vertex) is larger than the whole
 //! cache gets 507 `cache_too_small` before any work.
 
 use std::time::Duration;
@@ -111,8 +112,15 @@ pub fn predict(req: &BindingRequest, mean_edge_length: f64) -> Prediction {
         .collect();
     let total_segments = segments.iter().fold(0u64, |a, &b| a.saturating_add(b));
     let corners = req.face_vertex_indices.len() as u64;
-    let bytes_at_least =
-        corners.saturating_mul(BYTES_PER_CORNER).saturating_add(total_segments.saturating_mul(BYTES_PER_SEGMENT));
+    // A cage's mean value coordinates Φ: one f64 per mesh vertex and cage vertex.
+    let phi = req
+        .cage
+        .as_ref()
+        .map_or(0, |c| (req.projection_points.len() as u64).saturating_mul(c.points.len() as u64).saturating_mul(8));
+    let bytes_at_least = corners
+        .saturating_mul(BYTES_PER_CORNER)
+        .saturating_add(total_segments.saturating_mul(BYTES_PER_SEGMENT))
+        .saturating_add(phi);
     Prediction { segments, total_segments, bytes_at_least }
 }
 
@@ -169,6 +177,7 @@ mod tests {
             curvenets: vec![c],
             blend_shapes: Vec::new(),
             skin: None,
+            cage: None,
             options: Default::default(),
         }
     }
@@ -181,6 +190,15 @@ mod tests {
         assert_eq!(predict(&request(5.0, 1e-9), 1.0).total_segments, 1);
         // Overflowing lengths saturate instead of wrapping.
         assert_eq!(predict(&request(50.0, 1e300), 1e-300).total_segments, u64::MAX);
+    }
+
+    #[test]
+    fn a_cage_adds_its_phi_to_the_predicted_size() {
+        let plain = predict(&request(5.0, 10.0), 1.0).bytes_at_least;
+        let mut caged = request(5.0, 10.0);
+        caged.cage = Some(curvenet_schema::wire::CageSpec { points: vec![[0.0; 3]; 100], triangles: Vec::new() });
+        // 3 mesh vertices × 100 cage vertices × 8 bytes.
+        assert_eq!(predict(&caged, 1.0).bytes_at_least, plain + 2400);
     }
 
     #[test]

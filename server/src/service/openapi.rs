@@ -3,10 +3,10 @@
 
 use curvenet_schema::wire::{
     AdjustmentSpec, BakeRequest, BakeResponse, BinaryArray, BinaryFrameHeader, BinaryResponseHeader, BindingOptions,
-    BindingRequest, BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CurvenetSkinSpec,
-    CurvenetSpec, DeformRequest, DeformResponse, ErrorBody, ErrorDetails, FrameBatchRequest, FrameBatchResponse,
-    FrameRequest, FrameResponse, HealthResponse, InbetweenSpec, SegmentAt, SegmentId, SkinMethod, SkinSpec, TouchAt,
-    Warning,
+    BindingRequest, BindingResponse, BindingStats, BindingTimings, BlendShapeMode, BlendShapeSpec, CageSpec, CageStats,
+    CurvenetSkinSpec, CurvenetSpec, DeformRequest, DeformResponse, ErrorBody, ErrorDetails, FrameBatchRequest,
+    FrameBatchResponse, FrameRequest, FrameResponse, HealthResponse, InbetweenSpec, SegmentAt, SegmentId, SkeletonSpec,
+    SkinMethod, SkinSpec, TouchAt, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi, ToSchema};
@@ -68,10 +68,10 @@ impl Modify for BearerAuth {
     ),
     components(schemas(
         BindingRequest, CurvenetSpec, BlendShapeSpec, InbetweenSpec, BindingOptions, BindingResponse, BindingStats,
-        BindingTimings, Warning, SegmentAt, SegmentId, TouchAt, FrameRequest, FrameResponse, AdjustmentSpec, SkinSpec, CurvenetSkinSpec, SkinMethod, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
+        BindingTimings, Warning, SegmentAt, SegmentId, TouchAt, FrameRequest, FrameResponse, AdjustmentSpec, SkinSpec, SkeletonSpec, CageSpec, CageStats, CurvenetSkinSpec, SkinMethod, FrameBatchRequest, FrameBatchResponse, BlendShapeMode,
         DeformRequest, DeformResponse, BakeRequest, BakeResponse, ErrorBody, ErrorDetails, HealthResponse, BinaryArray,
         BinaryFrameHeader, BinaryResponseHeader, BinaryFrames,
-        viewer::ViewerStages, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
+        viewer::ViewerStages, viewer::CageView, viewer::ViewerStageInfo, viewer::ViewerStageBinding, viewer::ViewerData, viewer::MeshView,
         viewer::CutView, viewer::CurvenetView, viewer::ViewerFrame, viewer::PoseView, viewer::RestView,
         viewer::ViewerRefusal, viewer::SketchView, viewer::Highlight, viewer::ViewerAdjustment,
         viewer::ViewerAdjustRequest, viewer::ViewerExportRequest,

@@ -49,7 +49,9 @@ use curvenet_core::{
     MeshInput, PolyMesh, SamplingOptions,
 };
 use curvenet_schema::usd::{LayerFormat, encode_adjustment_layer};
-use curvenet_schema::wire::{AdjustmentSpec, BindingRequest, BindingResponse, ErrorBody, FrameRequest, Warning};
+use curvenet_schema::wire::{
+    AdjustmentSpec, BindingRequest, BindingResponse, BlendShapeMode, ErrorBody, FrameRequest, Warning,
+};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use utoipa::ToSchema;
@@ -218,6 +220,20 @@ pub struct ViewerData {
     pub warnings: Vec<Warning>,
     /// What each warning is about (same order and length as `warnings`).
     pub highlights: Vec<Highlight>,
+    /// The binding's cage, when it has one: drawn as a wireframe layer.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cage: Option<CageView>,
+}
+
+/// A binding's cage at bind.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CageView {
+    /// The rest cage at bind, flat `f32` xyz, `#C`.
+    pub points: Vec<f32>,
+    /// Its triangles, flat vertex triples.
+    pub triangles: Vec<u32>,
+    /// Its edges (each once), flat vertex pairs: the wireframe.
+    pub edges: Vec<u32>,
 }
 
 /// The input mesh in the projection pose.
@@ -350,6 +366,12 @@ pub struct ViewerFrame {
     /// frame asked for `orientations` (stage frames always do).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub knot_orientations: Option<Vec<BTreeMap<String, [f64; 9]>>>,
+    /// A caged binding's cage this frame, where it deforms the mesh: the
+    /// posed cage after CageUp (with a skin), else the frame's rest cage
+    /// with its edits; flat `f32` xyz, `#C` (the edges of
+    /// [`ViewerData::cage`] connect them).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cage: Option<Vec<f32>>,
 }
 
 /// An adjustment a viewer frame applied.
@@ -672,7 +694,9 @@ async fn solve_stage_frame(
     let mut frame = Frame::from(read.request);
     frame.adjustments.extend(read.adjustments);
     frame.adjustments = adjust::compose(std::mem::take(&mut frame.adjustments), &user);
-    frame.orientations = true;
+    // Knot orientations are answered for frames the curvenets are tracked
+    // on in the frame's own rest pose: not yet for skinned or caged frames.
+    frame.orientations = frame.joint_transforms.is_none() && entry.deformer.cage().is_none();
     let admission = Admission::one(state).await?;
     let mut view = solve_frame(state, admission, entry, frame).await.map_err(|e| e.context(&context))?;
     view.time = Some(time);
@@ -797,6 +821,55 @@ fn viewer_frame_view(entry: &Entry, frame: &Frame, solved: &Solved) -> Result<Vi
             .map(|a| ViewerAdjustment { adjustment: adjust::spec_of(a), prim: None, source: "stage".into() })
             .collect(),
         knot_orientations: solved.knot_orientations.clone(),
+        cage: frame_cage(entry, frame)?.map(|c| flat(&c)),
+    })
+}
+
+/// The cage of a caged binding this frame, as `Deformer::frame` poses it:
+/// the coupled rig (core's `CoupledRig::evaluate`) on the frame's rest pose
+/// (with `before`-mode blend shapes), its rest-cage edits, joint transforms
+/// and posed-cage offsets; its posed cage (CageUp; the edited rest cage
+/// without a skeleton). `None` without a cage.
+fn frame_cage(entry: &Entry, frame: &Frame) -> Result<Option<Vec<[f64; 3]>>, ServiceError> {
+    let deformer = &entry.deformer;
+    let Some(rig) = deformer.cage() else { return Ok(None) };
+    let mut base = frame.rest.clone().unwrap_or_else(|| deformer.projection_points().to_vec());
+    if let (Some(w), BlendShapeMode::Before) = (&frame.weights, frame.mode)
+        && entry.n_shapes() > 0
+    {
+        deformer.blend_shapes().add_to(w, &mut base).map_err(|e| ServiceError::core(e, Phase::Frame))?;
+    }
+    let input = curvenet_core::cage::CageFrame {
+        base: Some(&base),
+        rest_cage: frame.rest_cage.as_deref(),
+        joint_transforms: frame.joint_transforms.as_deref(),
+        posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
+    };
+    let mut ws = curvenet_core::cage::CoupledWorkspace::default();
+    let mut out = vec![[0.0; 3]; base.len()];
+    rig.evaluate(&input, &mut ws, &mut out).map_err(|e| ServiceError::core(e, Phase::Frame).context("cage"))?;
+    Ok(Some(ws.posed_cage().to_vec()))
+}
+
+/// The cage of a caged binding at bind, with its edges, for the viewer.
+fn cage_view(entry: &Entry) -> Option<CageView> {
+    let cage = entry.deformer.cage()?.mvc().cage();
+    let mut edges: Vec<[u32; 2]> = cage
+        .triangles()
+        .iter()
+        .flat_map(|t| {
+            [0, 1, 2].map(|i| {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                [a.min(b), a.max(b)]
+            })
+        })
+        .collect();
+    edges.sort_unstable();
+    edges.dedup();
+    Some(CageView {
+        points: flat(cage.points()),
+        triangles: cage.triangles().iter().flatten().copied().collect(),
+        edges: edges.into_iter().flatten().collect(),
     })
 }
 
@@ -954,6 +1027,7 @@ pub fn data(entry: &Entry) -> ViewerData {
         curvenets,
         warnings,
         highlights,
+        cage: cage_view(entry),
     }
 }
 

@@ -26,7 +26,7 @@ from .errors import (
     UnknownBindingError,
 )
 from .frames import Frame, FrameResult
-from .request import BindingOptions, BindingRequest, BlendShape, CurvenetSpec, Inbetween
+from .request import BindingOptions, BindingRequest, BlendShape, Cage, CurvenetSpec, Inbetween
 
 __all__ = [
     "DEFAULT_URL",
@@ -35,6 +35,7 @@ __all__ = [
     "BindingOptions",
     "BindingRequest",
     "BlendShape",
+    "Cage",
     "Client",
     "CurvenetError",
     "CurvenetSpec",

@@ -429,6 +429,8 @@ def _as_frame(frame: Frame | Mapping[str, Any]) -> Frame:
             "topology_hash",
             "adjustments",
             "orientations",
+            "rest_cage",
+            "posed_cage_offsets",
         }
         if unknown:
             raise ValueError(f"unknown frame fields {sorted(unknown)}")

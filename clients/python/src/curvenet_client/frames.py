@@ -6,8 +6,8 @@ Binary frames (server/README.md, "Binary frames")::
     H bytes             JSON header
     raw data            the arrays the header lists, in its order, little-endian f32
 
-A request header lists ``posed`` (with ``index``: the curvenet), ``rest`` and
-``blend_shape_weights`` arrays; the answer lists ``points`` ``[n, 3]`` and,
+A request header lists ``posed`` (with ``index``: the curvenet), ``rest``,
+``blend_shape_weights``, ``rest_cage`` and ``posed_cage_offsets`` arrays; the answer lists ``points`` ``[n, 3]`` and,
 when asked for, ``gradients`` ``[n, 9]``. A batch wraps the per-frame headers
 in ``{"frames": [...]}`` and concatenates the frames' arrays.
 
@@ -59,6 +59,10 @@ class Frame:
             ``tangent_translates``, sent as given.
         orientations: also answer every knot's orientation
             (:attr:`FrameResult.knot_orientations`).
+        rest_cage: a caged binding's rest cage this frame, ``(C, 3)`` (one
+            point per cage vertex); ``None``: the cage at bind.
+        posed_cage_offsets: a caged binding's posed-cage edits this frame,
+            ``(C, 3)``; ``None``: none.
     """
 
     posed: Sequence[npt.ArrayLike | None] | None = None
@@ -68,6 +72,8 @@ class Frame:
     topology_hash: str | None = field(default=None)
     adjustments: Sequence[Mapping[str, Any]] | None = None
     orientations: bool = False
+    rest_cage: npt.ArrayLike | None = None
+    posed_cage_offsets: npt.ArrayLike | None = None
 
 
 @dataclass(frozen=True)
@@ -131,6 +137,12 @@ def _frame_arrays(frame: Frame, gradients: bool) -> tuple[dict[str, Any], list[n
         a = _weights(frame.blend_shape_weights)
         arrays.append({"name": "blend_shape_weights", "shape": list(a.shape)})
         data.append(a)
+    for name in ("rest_cage", "posed_cage_offsets"):
+        value = getattr(frame, name)
+        if value is not None:
+            a = _points(value, name)
+            arrays.append({"name": name, "shape": list(a.shape)})
+            data.append(a)
     header: dict[str, Any] = {"arrays": arrays, "gradients": gradients}
     if frame.blend_shape_mode != "after":
         header["blend_shape_mode"] = frame.blend_shape_mode
@@ -168,6 +180,10 @@ def frame_json(frame: Frame, *, gradients: bool) -> dict[str, Any]:
         out["rest"] = np.asarray(frame.rest, dtype=np.float64).reshape(-1, 3).tolist()
     if frame.blend_shape_weights is not None:
         out["blend_shape_weights"] = np.asarray(frame.blend_shape_weights, dtype=np.float64).reshape(-1).tolist()
+    for name in ("rest_cage", "posed_cage_offsets"):
+        value = getattr(frame, name)
+        if value is not None:
+            out[name] = np.asarray(value, dtype=np.float64).reshape(-1, 3).tolist()
     if frame.blend_shape_mode != "after":
         out["blend_shape_mode"] = frame.blend_shape_mode
     if frame.topology_hash is not None:
@@ -277,4 +293,7 @@ def frame_bytes(frame: Frame) -> int:
         n += 12 * np.shape(frame.rest)[0]
     if frame.blend_shape_weights is not None:
         n += 4 * int(np.size(frame.blend_shape_weights))
+    for cage in (frame.rest_cage, frame.posed_cage_offsets):
+        if cage is not None:
+            n += 12 * np.shape(cage)[0]
     return n

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["BindingOptions", "BindingRequest", "BlendShape", "CurvenetSpec", "Inbetween"]
+__all__ = ["BindingOptions", "BindingRequest", "BlendShape", "Cage", "CurvenetSpec", "Inbetween"]
 
 #: Samples per mean mesh edge length when a curvenet authors none (``curvenet:sampleDensity``).
 DEFAULT_SAMPLE_DENSITY = 5.0
@@ -120,6 +120,25 @@ class BindingOptions:
 
 
 @dataclass
+class Cage:
+    """A closed triangle cage around the mesh (server/README.md, "The
+    cage"): its rest points at bind ``(C, 3)`` and its triangles ``(T, 3)``,
+    counter-clockwise seen from outside. Without a skin (this client sends
+    none) the cage alone deforms the mesh; frames edit it with
+    ``rest_cage`` and ``posed_cage_offsets``."""
+
+    points: npt.NDArray[np.float64]
+    triangles: npt.NDArray[np.int64]
+
+    def __post_init__(self) -> None:
+        self.points = _points(self.points, "cage.points")
+        self.triangles = _ints(self.triangles, "cage.triangles").reshape(-1, 3)
+
+    def to_json(self) -> dict[str, Any]:
+        return {"points": self.points.tolist(), "triangles": self.triangles.tolist()}
+
+
+@dataclass
 class BindingRequest:
     """A mesh (topology and projection pose) and the curvenets that deform it,
     with its blend shapes: everything the service hashes into a binding id."""
@@ -130,6 +149,7 @@ class BindingRequest:
     curvenets: list[CurvenetSpec]
     blend_shapes: list[BlendShape] = field(default_factory=list)
     options: BindingOptions = field(default_factory=BindingOptions)
+    cage: Cage | None = None
 
     def __post_init__(self) -> None:
         self.face_vertex_counts = _ints(self.face_vertex_counts, "face_vertex_counts")
@@ -151,6 +171,8 @@ class BindingRequest:
         }
         if self.blend_shapes:
             out["blend_shapes"] = [s.to_json() for s in self.blend_shapes]
+        if self.cage is not None:
+            out["cage"] = self.cage.to_json()
         options = self.options.to_json()
         if options:
             out["options"] = options
@@ -194,6 +216,7 @@ class BindingRequest:
                 options.get("snap_tolerance"),
                 options.get("max_projection_distance"),
             ),
+            cage=Cage(doc["cage"]["points"], doc["cage"]["triangles"]) if doc.get("cage") is not None else None,
         )
 
 

@@ -67,7 +67,7 @@ const view = {
   pose: 'deformed',
   picked: -1,
   boxScale: 1,
-  layers: { shaded: true, wire: false, cut: true, curvenet: true, frames: true, problems: true, knots: true },
+  layers: { shaded: true, wire: false, cut: true, curvenet: true, frames: true, problems: true, knots: true, cage: true },
   selected: -1,       // the highlight (warning) clicked in the panel, framed
   gpu: null,          // static GPU objects of the binding
   dyn: null,          // GPU objects of the current pose
@@ -194,13 +194,14 @@ function currentPose() {
   const data = view.data;
   const frame = view.frames.get(view.frame);
   if (view.pose === 'deformed' && frame) {
-    return { key: `d${view.frame}:${frame.serial}`, points: frame.points, cutPoints: frame.cut_points, nets: frame.curvenets, orientations: frame.knot_orientations };
+    // A caged binding's frame carries its cage where it deforms the mesh (the posed cage).
+    return { key: `d${view.frame}:${frame.serial}`, points: frame.points, cutPoints: frame.cut_points, nets: frame.curvenets, orientations: frame.knot_orientations, cage: frame.cage };
   }
   if (frame && frame.rest) {
     const r = frame.rest;
     return { key: `r${view.frame}`, points: r.points, cutPoints: r.cut_points, nets: r.curvenets };
   }
-  return { key: 'r', points: data.mesh.points, cutPoints: data.cut.points, nets: data.curvenets };
+  return { key: 'r', points: data.mesh.points, cutPoints: data.cut.points, nets: data.curvenets, cage: data.cage && data.cage.points };
 }
 
 function buildDynamic() {
@@ -247,9 +248,11 @@ function buildDynamic() {
   const axes = knotAxes(data, pose.nets, pose.orientations, AXIS_LENGTH * (data.diagonal || 1)).map((a) => wideLines(a));
   const at = view.knot && pose.orientations && knotPosition(data, pose.nets, view.knot.curvenet, view.knot.knot);
   const knot = at ? pointSet(new Float32Array(at)) : null;
+  // The cage's wireframe (a caged binding), in the pose's cage.
+  const cage = data.cage && pose.cage ? wideLines(indexSegments(pose.cage, data.cage.edges)) : null;
   const sets = nets.flatMap((n) => Object.values(n)).concat(Object.values(cut), picked ? picked.sets : [],
-    highlights.flatMap((h) => [h.lines, h.points, h.faces]), axes, knot ? [knot] : []);
-  view.dyn = { nets, cut, picked, highlights, sets, points, axes, knot };
+    highlights.flatMap((h) => [h.lines, h.points, h.faces]), axes, knot ? [knot] : [], cage ? [cage] : []);
+  view.dyn = { nets, cut, picked, highlights, sets, points, axes, knot, cage };
   view.dynKey = key;
 }
 
@@ -382,6 +385,7 @@ function draw() {
       drawFlat(n.removed, mvp, [1.0, 0.31, 0.85, 1], gl.POINTS, 9);
     }
   });
+  if (L.cage && dyn.cage) drawWide(dyn.cage, mvp, [0.55, 0.95, 0.75, 1], 1.5);
   if (L.knots) dyn.axes.forEach((a, j) => drawWide(a, mvp, AXIS_COLORS[j], 2.5));
   if (dyn.knot) {
     gl.disable(gl.DEPTH_TEST);
@@ -821,6 +825,8 @@ async function open(source) {
     view.frames = new Map();
     view.frame = 0;
     view.gpu = buildStatic(data);
+    // The cage layer is offered (and on) when the binding has a cage.
+    $('cage-layer').hidden = !data.cage;
     view.selected = -1;
     view.user = new Map();
     view.knot = null;
@@ -862,6 +868,7 @@ function showRefusal(source, refusal) {
   view.frames = new Map();
   view.frame = 0;
   view.gpu = buildStatic(data);
+  $('cage-layer').hidden = true;
   view.selected = 0;
   view.user = new Map();
   view.knot = null;
