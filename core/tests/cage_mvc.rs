@@ -155,3 +155,59 @@ fn malformed_cages_are_refused_naming_the_element() {
     let err = Mvc::new(&cage, &tris, &[[0.0; 3], [f64::INFINITY, 0.0, 0.0]]).unwrap_err();
     assert!(matches!(err, Error::Cage(CageError::NonFinite { what: "point", index: 1, .. })), "{err}");
 }
+
+#[test]
+fn a_cage_that_misses_points_or_is_too_fine_is_refused_naming_why() {
+    use curvenet_core::cage::{CageError, Mvc};
+    // A unit tetrahedron (outward) and a point outside it.
+    let cage = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let tris = [[0u32, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+    let points = [[0.1, 0.1, 0.1], [2.0, 2.0, 2.0], [0.2, 0.2, 0.2], [-1.0, 0.1, 0.1]];
+    match Mvc::new(&cage, &tris, &points) {
+        Err(curvenet_core::Error::Cage(CageError::NotEnclosing { point, outside, .. })) => {
+            assert_eq!((point, outside), (1, 2));
+        }
+        other => panic!("{other:?}"),
+    }
+    // Points on the cage (a vertex, an edge midpoint, a face point) are inside.
+    let on = [[1.0, 0.0, 0.0], [0.5, 0.5, 0.0], [0.2, 0.2, 0.6]];
+    assert!(Mvc::new(&cage, &tris, &on).is_ok());
+    // A cage finer than a cage (an octahedron split 1-to-4 five times:
+    // 4098 vertices) is refused before its coordinates are allocated.
+    let (fine, fine_tris) = split_octahedron(5);
+    assert!(fine.len() > curvenet_core::cage::MAX_CAGE_VERTICES);
+    match Mvc::new(&fine, &fine_tris, &[[0.0, 0.0, 0.0]]) {
+        Err(curvenet_core::Error::Cage(CageError::TooLarge { cage_vertices, .. })) => {
+            assert_eq!(cage_vertices, fine.len())
+        }
+        other => panic!("{:?}", other.map(|_| ())),
+    }
+}
+
+/// The unit octahedron, its triangles split 1-to-4 `levels` times (outward).
+fn split_octahedron(levels: usize) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let mut points =
+        vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
+    let mut tris: Vec<[u32; 3]> =
+        vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    for _ in 0..levels {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::with_capacity(tris.len() * 4);
+        for t in &tris {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]));
+                m[k] = *mid.entry((a, b)).or_insert_with(|| {
+                    let (p, q) = (points[a as usize], points[b as usize]);
+                    let c: [f64; 3] = [(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0, (p[2] + q[2]) / 2.0];
+                    let l: f64 = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+                    points.push([c[0] / l, c[1] / l, c[2] / l]);
+                    points.len() as u32 - 1
+                });
+            }
+            next.extend([[t[0], m[0], m[2]], [m[0], t[1], m[1]], [m[2], m[1], t[2]], [m[0], m[1], m[2]]]);
+        }
+        tris = next;
+    }
+    (points, tris)
+}

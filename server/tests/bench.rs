@@ -87,6 +87,13 @@ fn bench_json_reports_the_hand_1k4_fixture() {
     let neutral = m["neutral_max_error"].as_f64().unwrap();
     assert!(neutral < 1e-6, "neutral pose error {neutral}");
     assert!(m["max_displacement"].as_f64().unwrap() > 0.0);
+    // The coupled cage's per-frame stages (issue 18): hand_caged's cage and skeleton on the benched hand.
+    let cage = &v["cage"][0];
+    assert_eq!(cage["mesh"], "hand_1k4");
+    assert_eq!((count(cage, "cage_vertices"), count(cage, "joints")), (170, 8));
+    for key in ["build_ms", "condition", "cage_rev_ms", "cage_up_ms", "phi_c_ms", "skinning_ms"] {
+        positive_finite(cage, key);
+    }
 }
 
 #[test]

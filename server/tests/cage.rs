@@ -195,3 +195,44 @@ fn inspect_reports_the_cage_its_maxvol_rows_and_conditioning() {
     let alone: serde_json::Value = serde_json::from_slice(&curvenet(&["inspect", CAGE_ONLY, "--json"]).stdout).unwrap();
     assert_eq!(alone["meshes"][0]["cage"]["coupled"], false);
 }
+
+/// A layer over the cage-only shot that re-targets or moves the cage.
+fn over_cage_only(dir: &std::path::Path, name: &str, body: &str) -> std::path::PathBuf {
+    let shot = repo().join(CAGE_ONLY);
+    let path = dir.join(format!("{name}.usda"));
+    std::fs::write(&path, format!("#usda 1.0\n(\n    subLayers = [@{}@]\n)\n\n{body}\n", shot.display())).unwrap();
+    path
+}
+
+#[test]
+fn a_cage_that_is_the_mesh_itself_or_leaves_points_outside_is_refused_naming_it() {
+    let dir = common::temp_dir("cage", "refused");
+    let out = dir.join("out.usda");
+    let self_cage = over_cage_only(
+        &dir,
+        "self",
+        "over \"Hand\"\n{\n    over \"Mesh\"\n    {\n        rel curvenet:cage = </Hand/Mesh>\n    }\n}",
+    );
+    let run = curvenet(&["bake", self_cage.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("curvenet:cage") && stderr(&run).contains("the mesh itself"), "{}", stderr(&run));
+    assert!(!out.exists(), "nothing is written on failure");
+    // Moving every cage point far away (its points default re-authored).
+    let stage = Stage::open(repo().join(CAGE_ONLY)).unwrap();
+    let mesh = stage.deformed_meshes().unwrap().remove(0);
+    let cage = stage.cage(&mesh).unwrap().unwrap();
+    let moved: Vec<String> =
+        cage.rest_points.iter().map(|p| format!("({}, {}, {})", p[0] + 100.0, p[1], p[2])).collect();
+    let far_points = over_cage_only(
+        &dir,
+        "far_points",
+        &format!(
+            "over \"Hand\"\n{{\n    over \"Cage\"\n    {{\n        point3f[] points = [{}]\n    }}\n}}",
+            moved.join(", ")
+        ),
+    );
+    let run = curvenet(&["bake", far_points.to_str().unwrap(), "--out", out.to_str().unwrap(), "--frames", "1"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("outside the cage"), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -46,7 +46,7 @@ pub mod mvc;
 pub use cor::{COR_SIGMA, CentersOfRotation, skin_points_cor};
 pub use coupled::{CageFrame, CageRevApproximation, CageTimings, CoupledRig, CoupledWorkspace, LOCALIZATION_EXPONENT};
 pub use maxvol::{MAXVOL_TOLERANCE, MaxVol};
-pub use mvc::{Cage, MVC_EPSILON, Mvc};
+pub use mvc::{Cage, MAX_CAGE_VERTICES, MAX_PHI_BYTES, MVC_EPSILON, Mvc};
 
 use crate::error::Error;
 
@@ -83,6 +83,19 @@ pub enum CageError {
         "the cage is inside out: its signed volume is {volume:e} (triangles must wind counter-clockwise seen from outside)"
     )]
     InsideOut { volume: f64 },
+    /// The cage is too fine for dense coordinates ([`mvc::MAX_CAGE_VERTICES`], [`mvc::MAX_PHI_BYTES`]).
+    #[error(
+        "a cage of {cage_vertices} vertices over {points} points needs {bytes} bytes of mean value coordinates; a cage \
+         is a coarse control mesh (at most {max_vertices} vertices and {max_bytes} bytes of coordinates)",
+        max_vertices = mvc::MAX_CAGE_VERTICES,
+        max_bytes = mvc::MAX_PHI_BYTES
+    )]
+    TooLarge { points: usize, cage_vertices: usize, bytes: usize },
+    /// A point lies outside the cage (winding number below ½).
+    #[error(
+        "point {point} ({position:?}) is outside the cage ({outside} points are): a cage must enclose every point it deforms"
+    )]
+    NotEnclosing { point: usize, position: [f64; 3], outside: usize },
     /// An array has the wrong length.
     #[error("{what}: expected {expected} entries, got {got}")]
     Count { what: &'static str, expected: usize, got: usize },

@@ -69,6 +69,33 @@ pub struct Cage {
 }
 
 impl Cage {
+    /// The generalised winding number of `q` (van Oosterom and Strackee's
+    /// solid angles of the triangles over 4π): 1 inside the cage, 0 outside.
+    pub fn winding_number(&self, q: [f64; 3]) -> f64 {
+        let q = DVec3::from_array(q);
+        let mut omega = 0.0;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| DVec3::from_array(self.points[i as usize]) - q);
+            let (la, lb, lc) = (a.length(), b.length(), c.length());
+            let num = a.dot(b.cross(c));
+            let den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+            omega += 2.0 * num.atan2(den);
+        }
+        omega / (4.0 * std::f64::consts::PI)
+    }
+
+    /// The distance from `q` to the cage's surface.
+    pub fn distance(&self, q: [f64; 3]) -> f64 {
+        let q = DVec3::from_array(q);
+        let corner = |i: u32| DVec3::from_array(self.points[i as usize]);
+        self.triangles
+            .iter()
+            .map(|t| {
+                crate::closest_point::closest_on_triangle(q, corner(t[0]), corner(t[1]), corner(t[2])).1.distance(q)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// Checks and stores a cage. Refused, naming the element: no triangles
     /// or fewer than 4 points; a corner index out of range; a triangle
     /// repeating a vertex or with zero area; a non-finite point; a vertex
@@ -261,6 +288,16 @@ pub struct Mvc {
     phi: Vec<f64>,
 }
 
+/// The most cage vertices a cage may have: a cage is a coarse control
+/// mesh (the paper's have tens to a few hundred vertices); a cage of
+/// thousands is a mesh given where a cage was meant (e.g. the character
+/// itself), whose dense `Φ` would not fit in memory.
+pub const MAX_CAGE_VERTICES: usize = 4096;
+
+/// The most memory `Φ` (points × cage vertices × 8 bytes) may take: 2 GiB,
+/// a 376k-vertex character with a 700-vertex cage.
+pub const MAX_PHI_BYTES: usize = 2 << 30;
+
 impl Mvc {
     /// Validates the cage ([`Cage::new`]) and computes the coordinates of
     /// every point (parallel over points). A non-finite point is refused,
@@ -277,6 +314,23 @@ impl Mvc {
             }
         }
         let c = cage.n_vertices();
+        // Φ is dense: refuse before allocating what no coarse cage needs.
+        let bytes = points.len().saturating_mul(c).saturating_mul(std::mem::size_of::<f64>());
+        if c > MAX_CAGE_VERTICES || bytes > MAX_PHI_BYTES {
+            return Err(CageError::TooLarge { points: points.len(), cage_vertices: c, bytes }.into());
+        }
+        // Mean value coordinates interpolate inside the cage; outside they
+        // extrapolate, and a cage edit would move such points arbitrarily far.
+        // Points on the cage (within 1e-9 of its diagonal) count as inside.
+        let outside: Vec<usize> = points
+            .par_iter()
+            .enumerate()
+            .filter(|(_, p)| cage.winding_number(**p) < 0.5 && cage.distance(**p) > 1e-9 * cage.diagonal)
+            .map(|(i, _)| i)
+            .collect();
+        if let Some(&point) = outside.first() {
+            return Err(CageError::NotEnclosing { point, position: points[point], outside: outside.len() }.into());
+        }
         let mut phi = vec![0.0; points.len() * c];
         if c > 0 {
             phi.par_chunks_mut(c).zip(points.par_iter()).for_each(|(row, p)| {

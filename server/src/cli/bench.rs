@@ -99,6 +99,7 @@ use serde::Serialize;
 
 use super::{CliError, CliResult};
 
+mod cage;
 mod export;
 mod growth;
 mod ordering;
@@ -159,6 +160,9 @@ pub struct Args {
     /// Timed frames of the growth mesh.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     pub growth_frames: u32,
+    /// Leave out the coupled-cage rows (fixtures/shots/hand_caged's cage on every benched hand).
+    #[arg(long)]
+    pub no_cage: bool,
 }
 
 /// What `bench_mesh` does besides the bench proper.
@@ -180,6 +184,8 @@ struct Report {
     corpus: Vec<CorpusBench>,
     /// The growth row (null with `--no-growth`).
     growth: Option<growth::GrowthBench>,
+    /// The coupled cage's per-frame stages on every benched hand (empty with `--no-cage`).
+    cage: Vec<cage::CageBench>,
 }
 
 /// One corpus mesh: binding and solve medians, how its segments were
@@ -336,7 +342,8 @@ pub fn run(args: &Args) -> CliResult {
     // reference of the row's frame target): none when that mesh is not.
     let grow = !args.no_growth && args.meshes.contains(&args.growth_mesh);
     let growth_file = if grow { Some(fixture_file(dir, &args.growth_mesh)?) } else { None };
-    let mut report = Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new(), growth: None };
+    let mut report =
+        Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new(), growth: None, cage: Vec::new() };
     let mut extra = Extra { orderings: args.orderings, export: args.export.as_deref(), exported: Vec::new() };
     for (name, file) in args.meshes.iter().zip(&files) {
         if !args.json {
@@ -346,6 +353,14 @@ pub fn run(args: &Args) -> CliResult {
     }
     if let Some(dir) = &args.export {
         export::write_manifest(dir, &extra.exported)?;
+    }
+    if !args.no_cage {
+        if !args.json {
+            eprintln!("curvenet bench: the coupled cage on every hand…");
+        }
+        let hands: Vec<(&str, &Path)> =
+            args.meshes.iter().map(String::as_str).zip(files.iter().map(|f| f.as_path())).collect();
+        report.cage = cage::bench_cage(dir, &hands, repeats)?;
     }
     let corpus_frames = args.corpus_frames as usize;
     for (name, file) in &corpus {
@@ -378,6 +393,9 @@ pub fn run(args: &Args) -> CliResult {
         print!("{}", ordering::text(&rows, repeats, frames));
         if let Some(g) = &report.growth {
             print!("{}", growth::text(g));
+        }
+        if !report.cage.is_empty() {
+            print!("{}", cage::text(&report.cage));
         }
     }
     Ok(())
