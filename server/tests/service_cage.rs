@@ -9,10 +9,6 @@
 
 mod common;
 
-use std::io::Read as _;
-use std::process::{Child, Command, Stdio};
-use std::time::Duration;
-
 use curvenet_core::deformer::{CageInput, Rig};
 use curvenet_core::skinning::{self, Influences, Mat4, Skeleton, Skin, SkinningMethod};
 use curvenet_core::{CurvenetInput, Deformer, DeformerInput, Frame};
@@ -25,50 +21,7 @@ use serde_json::{Value, json};
 
 const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
 
-/// `curvenet serve` on a free port (killed when dropped).
-struct Server {
-    child: Child,
-    url: String,
-}
-
-impl Server {
-    fn start(extra: &[&str]) -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2"])
-            .args(extra)
-            .env_remove("CURVENET_TOKEN")
-            .current_dir(common::repo())
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("curvenet serve starts");
-        let mut stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = Vec::new();
-            let mut byte = [0u8; 1];
-            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
-                if byte[0] == b'\n' {
-                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
-                    line.clear();
-                } else {
-                    line.push(byte[0]);
-                }
-            }
-        });
-        let first = rx.recv_timeout(Duration::from_secs(120)).expect("the server prints its address");
-        let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
-        Self { child, url }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::Served as Server;
 
 async fn post(client: &reqwest::Client, url: &str, body: &impl serde::Serialize) -> (u16, Vec<u8>) {
     let r = client.post(url).json(body).send().await.unwrap();

@@ -382,51 +382,7 @@ async fn a_refused_stage_is_drawn_with_the_element_its_error_names() {
     assert!(doc["paths"].get("/v1/viewer/stages/{index}/refusal").is_some());
 }
 
-/// `curvenet serve --open-stage SHOT` on a free port (killed when dropped).
-struct Served {
-    child: std::process::Child,
-    url: String,
-}
-
-impl Served {
-    fn open(shot: &str) -> Self {
-        use std::io::Read as _;
-        use std::process::{Command, Stdio};
-        let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2", "--open-stage", shot])
-            .env_remove("CURVENET_TOKEN")
-            .current_dir(common::repo())
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("curvenet serve starts");
-        let mut stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = Vec::new();
-            let mut byte = [0u8; 1];
-            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
-                if byte[0] == b'\n' {
-                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
-                    line.clear();
-                } else {
-                    line.push(byte[0]);
-                }
-            }
-        });
-        let first = rx.recv_timeout(std::time::Duration::from_secs(120)).expect("the server prints its address");
-        let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
-        Self { child, url }
-    }
-}
-
-impl Drop for Served {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::Served;
 
 /// An opened caged stage (fixtures/shots/hand_caged: a cage coupled with
 /// the skeleton): the viewer's data carry the cage's wireframe, and each
@@ -459,7 +415,7 @@ async fn an_opened_caged_stage_draws_its_posed_cage_and_bakes_alike() {
     )
     .unwrap();
 
-    let server = Served::open(CAGED);
+    let server = Served::start(&["--open-stage", CAGED]);
     let client = reqwest::Client::new();
     let base = &server.url;
     let get = |url: String| {

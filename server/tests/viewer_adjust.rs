@@ -13,59 +13,14 @@
 
 mod common;
 
-use std::io::Read as _;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::time::Duration;
 
 use curvenet_schema::usd::{Stage, read_points_overrides};
 use serde_json::{Value, json};
 
 const SHOT: &str = "fixtures/shots/hand_adjusted/shot.usda";
 
-/// `curvenet serve --open-stage SHOT` on a free port (killed when dropped).
-struct Server {
-    child: Child,
-    url: String,
-}
-
-impl Server {
-    fn start() -> Self {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
-            .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2", "--open-stage", SHOT])
-            .env_remove("CURVENET_TOKEN")
-            .current_dir(common::repo())
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("curvenet serve starts");
-        let mut stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = Vec::new();
-            let mut byte = [0u8; 1];
-            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
-                if byte[0] == b'\n' {
-                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
-                    line.clear();
-                } else {
-                    line.push(byte[0]);
-                }
-            }
-        });
-        let first = rx.recv_timeout(Duration::from_secs(60)).expect("the server prints its address");
-        let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
-        Self { child, url }
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::Served;
 
 async fn get(client: &reqwest::Client, url: &str) -> Value {
     let r = client.get(url).send().await.unwrap();
@@ -108,7 +63,7 @@ fn bake(stage: &Path, time: f64, dir: &Path, name: &str) -> Vec<f64> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn adjustments_of_the_stage_and_the_user_bake_to_what_the_viewer_shows() {
     let dir = common::temp_dir("viewer-adjust", "bake");
-    let server = Server::start();
+    let server = Served::start(&["--open-stage", SHOT]);
     let client = reqwest::Client::new();
     let base = &server.url;
     let stages = get(&client, &format!("{base}/v1/viewer/stages")).await;
@@ -196,7 +151,7 @@ async fn adjustments_of_the_stage_and_the_user_bake_to_what_the_viewer_shows() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_bad_knot_is_refused_naming_it() {
-    let server = Server::start();
+    let server = Served::start(&["--open-stage", SHOT]);
     let client = reqwest::Client::new();
     let base = &server.url;
     let net = Stage::open(common::repo().join(SHOT)).unwrap().curvenet("/Hand/Curvenet").unwrap();

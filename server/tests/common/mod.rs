@@ -28,3 +28,54 @@ pub fn temp_dir(kind: &str, tag: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+/// `curvenet serve` on a free port with `extra` arguments (e.g.
+/// `--open-stage SHOT`), run from the repository root; killed when dropped.
+#[allow(dead_code)]
+pub struct Served {
+    child: std::process::Child,
+    /// `http://127.0.0.1:PORT`, as the server prints it.
+    pub url: String,
+}
+
+#[allow(dead_code)]
+impl Served {
+    pub fn start(extra: &[&str]) -> Self {
+        use std::io::Read as _;
+        use std::process::Stdio;
+        let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2"])
+            .args(extra)
+            .env_remove("CURVENET_TOKEN")
+            .current_dir(repo())
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("curvenet serve starts");
+        let mut stdout = child.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = Vec::new();
+            let mut byte = [0u8; 1];
+            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
+                if byte[0] == b'\n' {
+                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
+                    line.clear();
+                } else {
+                    line.push(byte[0]);
+                }
+            }
+        });
+        let first = rx.recv_timeout(std::time::Duration::from_secs(120)).expect("the server prints its address");
+        let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
+        Self { child, url }
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
