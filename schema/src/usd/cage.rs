@@ -62,6 +62,20 @@ impl Stage {
                 ));
             }
         };
+        if path == mesh.path {
+            return Err(UsdError::contract(
+                &mesh.path,
+                CAGE_REL,
+                "targets the mesh itself; a cage is a separate, coarse closed triangle Mesh around it",
+            ));
+        }
+        if path.contains('.') {
+            return Err(UsdError::contract(
+                &mesh.path,
+                CAGE_REL,
+                format!("targets {path}, a property; a cage is a Mesh prim"),
+            ));
+        }
         if !self.has_prim(&path) {
             return Err(UsdError::contract(&mesh.path, CAGE_REL, format!("targets {path}, which is not on the stage")));
         }
