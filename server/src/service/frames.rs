@@ -377,25 +377,33 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
     Ok(())
 }
 
+impl Frame {
+    /// The core's frame input over this frame's arrays (`posed`: its posed
+    /// pools as slices), as [`solve`] and [`solve_group`] pass it.
+    fn core<'a>(&'a self, posed: &'a [Option<&'a [[f64; 3]]>]) -> curvenet_core::Frame<'a> {
+        curvenet_core::Frame {
+            posed,
+            rest: self.rest.as_deref(),
+            blend_shape_weights: self.weights.as_deref(),
+            blend_shape_mode: match self.mode {
+                BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
+                BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
+            },
+            adjustments: &self.adjustments,
+            joint_transforms: self.joint_transforms.as_deref(),
+            rest_cage: self.rest_cage.as_deref(),
+            posed_cage_offsets: self.posed_cage_offsets.as_deref(),
+        }
+    }
+}
+
 /// Solves a validated frame through `curvenet_core::Deformer::frame`.
 /// CPU-heavy: run it on the solve pool (see solve.rs).
 pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     let t0 = Instant::now();
     let n = entry.binding().n_vertices();
     let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
-    let input = curvenet_core::Frame {
-        posed: &posed,
-        rest: frame.rest.as_deref(),
-        blend_shape_weights: frame.weights.as_deref(),
-        blend_shape_mode: match frame.mode {
-            BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
-            BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
-        },
-        adjustments: &frame.adjustments,
-        joint_transforms: frame.joint_transforms.as_deref(),
-        rest_cage: frame.rest_cage.as_deref(),
-        posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
-    };
+    let input = frame.core(&posed);
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
     entry
@@ -420,23 +428,8 @@ pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usiz
     let n = entry.binding().n_vertices();
     let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
         frames.iter().map(|f| f.posed.iter().map(|p| p.as_deref()).collect()).collect();
-    let inputs: Vec<curvenet_core::Frame<'_>> = frames
-        .iter()
-        .zip(&posed)
-        .map(|(frame, posed)| curvenet_core::Frame {
-            posed,
-            rest: frame.rest.as_deref(),
-            blend_shape_weights: frame.weights.as_deref(),
-            blend_shape_mode: match frame.mode {
-                BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
-                BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
-            },
-            adjustments: &frame.adjustments,
-            joint_transforms: frame.joint_transforms.as_deref(),
-            rest_cage: frame.rest_cage.as_deref(),
-            posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
-        })
-        .collect();
+    let inputs: Vec<curvenet_core::Frame<'_>> =
+        frames.iter().zip(&posed).map(|(frame, posed)| frame.core(posed)).collect();
     let mut points = vec![vec![[0.0; 3]; n]; frames.len()];
     let mut gradients: Vec<Option<Vec<[f64; 9]>>> =
         frames.iter().map(|f| f.gradients.then(|| vec![[0.0; 9]; n])).collect();
