@@ -244,41 +244,8 @@ impl Cholesky {
         for (k, w) in work.iter_mut().enumerate() {
             *w = rhs[self.perm[k] as usize];
         }
-        let (cp, ri, lv) = (&self.col_ptr, &self.row_idx, &self.values);
-        // Forward: L z = y, column by column (scatter).
-        for j in 0..n {
-            let (s, e) = (cp[j] as usize, cp[j + 1] as usize);
-            let inv = 1.0 / lv[s];
-            let mut zj = work[j];
-            for c in zj.iter_mut() {
-                *c *= inv;
-            }
-            work[j] = zj;
-            for p in s + 1..e {
-                let l = lv[p];
-                let row = &mut work[ri[p] as usize];
-                for c in 0..K {
-                    row[c] -= l * zj[c];
-                }
-            }
-        }
-        // Backward: Lᵀ x = z, row j of Lᵀ is column j of L (gather).
-        for j in (0..n).rev() {
-            let (s, e) = (cp[j] as usize, cp[j + 1] as usize);
-            let mut acc = work[j];
-            for p in s + 1..e {
-                let l = lv[p];
-                let xr = &work[ri[p] as usize];
-                for c in 0..K {
-                    acc[c] -= l * xr[c];
-                }
-            }
-            let inv = 1.0 / lv[s];
-            for c in acc.iter_mut() {
-                *c *= inv;
-            }
-            work[j] = acc;
-        }
+        // Forward L z = y (scatter), then backward Lᵀ x = z (gather), in the factor's order.
+        self.sweep::<K>(work);
         for (k, w) in work.iter().enumerate() {
             rhs[self.perm[k] as usize] = *w;
         }
