@@ -61,6 +61,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Par, Side};
 
 use crate::error::{Error, Result};
+use crate::simd::Simd;
 
 /// A symmetric matrix given by its lower triangle as `(row, col, value)`
 /// triplets with `row >= col`; duplicates are summed.
@@ -383,8 +384,36 @@ impl Cholesky {
         widths!(1 2 3 4 6 8 9 12 15 18 21 24 27 36 45 48 54 63 72 96 144 288);
     }
 
-    /// Both triangular sweeps over rows of `W` interleaved columns, in the factor's order.
+    /// Both triangular sweeps over rows of `W` interleaved columns, in the
+    /// factor's order, compiled for the widest vector unit the CPU has (see
+    /// [`Simd`]; every variant does the same operations in the same order,
+    /// so the results are bit for bit the same on every machine).
     fn sweep<const W: usize>(&self, work: &mut [[f64; W]]) {
+        match Simd::detect() {
+            // SAFETY: `Simd::detect` found the feature on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => unsafe { self.sweep_avx512::<W>(work) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => unsafe { self.sweep_avx2::<W>(work) },
+            Simd::Baseline => self.sweep_body::<W>(work),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn sweep_avx512<const W: usize>(&self, work: &mut [[f64; W]]) {
+        self.sweep_body::<W>(work)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn sweep_avx2<const W: usize>(&self, work: &mut [[f64; W]]) {
+        self.sweep_body::<W>(work)
+    }
+
+    #[inline(always)]
+    fn sweep_body<const W: usize>(&self, work: &mut [[f64; W]]) {
         let n = self.n;
         let (cp, ri, lv) = (&self.col_ptr, &self.row_idx, &self.values);
         for j in 0..n {
@@ -612,6 +641,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The AVX2 and AVX-512 builds of the sweeps give the portable one's
+    /// bits (same operations, same order, no FMA), for widths that fill a
+    /// register exactly, leave a remainder, or are narrower than one.
+    #[test]
+    fn vector_unit_variants_solve_bit_for_bit_alike() {
+        fn check<const W: usize>(f: &Cholesky) {
+            let n = f.n();
+            let rhs: Vec<[f64; W]> = (0..n)
+                .map(|i| std::array::from_fn(|c| ((i * 13 + c * 5) % 17) as f64 - 8.0 + 1.0 / (c + 1) as f64))
+                .collect();
+            let mut portable = rhs.clone();
+            f.sweep_body::<W>(&mut portable);
+            assert!(portable.iter().flatten().all(|x| x.is_finite()));
+            #[cfg(target_arch = "x86_64")]
+            {
+                let mut tried = 0;
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    let mut x = rhs.clone();
+                    // SAFETY: the CPU has AVX2 (checked above).
+                    unsafe { f.sweep_avx2::<W>(&mut x) };
+                    assert_eq!(x, portable, "AVX2, width {W}");
+                    tried += 1;
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    let mut x = rhs.clone();
+                    // SAFETY: the CPU has AVX-512F (checked above).
+                    unsafe { f.sweep_avx512::<W>(&mut x) };
+                    assert_eq!(x, portable, "AVX-512, width {W}");
+                    tried += 1;
+                }
+                eprintln!("width {W}: {tried} vector variant(s) compared (detected: {})", Simd::detect().name());
+            }
+            // The dispatching entry point is one of them.
+            let mut x = rhs.clone();
+            f.sweep::<W>(&mut x);
+            assert_eq!(x, portable, "dispatched ({}), width {W}", Simd::detect().name());
+        }
+        let f = Cholesky::new(&grid(45, 0.0)).unwrap();
+        check::<1>(&f);
+        check::<3>(&f);
+        check::<9>(&f);
+        check::<13>(&f);
+        check::<72>(&f);
     }
 
     #[test]

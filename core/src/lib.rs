@@ -29,6 +29,7 @@ pub mod heap;
 pub mod ids;
 pub mod mesh;
 pub mod polygon_laplacian;
+pub mod simd;
 pub mod skinning;
 pub mod solve;
 pub mod sparse;

@@ -29,6 +29,8 @@ fn bench_json_reports_the_hand_1k4_fixture() {
     assert_eq!(v["repeats"], 2);
     assert_eq!(v["frames"], 3);
     assert!(count(&v, "threads") >= 1);
+    let simd = v["simd"].as_str().expect("the sweeps' vector unit");
+    assert!(["baseline", "avx2", "avx512"].contains(&simd), "simd {simd}");
     let meshes = v["meshes"].as_array().expect("a `meshes` array");
     assert_eq!(meshes.len(), 1);
     let m = &meshes[0];

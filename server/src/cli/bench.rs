@@ -77,7 +77,7 @@
 //! - **Memory**: `binding_bytes_per_vertex`, the binding's `heap_bytes` over
 //!   the mesh's vertices.
 //!
-//! `--json` prints one object: `{"threads", "repeats", "frames", "meshes":
+//! `--json` prints one object: `{"threads", "simd", "repeats", "frames", "meshes":
 //! [...], "corpus": [...]}`, one entry per hand mesh with (at least) `mesh`,
 //! `vertices`, `faces`, `knots`, `samples`, `cutting_ms`, `factor_ms`,
 //! `solve_ms`, `binding_ms`, all the other measurements under their field
@@ -178,6 +178,9 @@ const EXPORT_FRAME: (usize, usize) = (1, 4);
 #[derive(Serialize)]
 struct Report {
     threads: usize,
+    /// The vector unit the triangular sweeps ran on (`baseline`, `avx2`,
+    /// `avx512`; `CURVENET_SIMD=baseline|avx2` caps it).
+    simd: &'static str,
     repeats: usize,
     frames: usize,
     meshes: Vec<MeshBench>,
@@ -342,8 +345,16 @@ pub fn run(args: &Args) -> CliResult {
     // reference of the row's frame target): none when that mesh is not.
     let grow = !args.no_growth && args.meshes.contains(&args.growth_mesh);
     let growth_file = if grow { Some(fixture_file(dir, &args.growth_mesh)?) } else { None };
-    let mut report =
-        Report { threads, repeats, frames, meshes: Vec::new(), corpus: Vec::new(), growth: None, cage: Vec::new() };
+    let mut report = Report {
+        threads,
+        simd: curvenet_core::simd::Simd::detect().name(),
+        repeats,
+        frames,
+        meshes: Vec::new(),
+        corpus: Vec::new(),
+        growth: None,
+        cage: Vec::new(),
+    };
     let mut extra = Extra { orderings: args.orderings, export: args.export.as_deref(), exported: Vec::new() };
     for (name, file) in args.meshes.iter().zip(&files) {
         if !args.json {
@@ -977,8 +988,8 @@ fn text_report(r: &Report) -> String {
     let w = r.meshes.iter().map(|m| m.mesh.len()).max().unwrap_or(4).max(10);
     let _ = writeln!(
         s,
-        "curvenet bench: medians of {} bindings and {} frames per mesh (frame 0 neutral, then a finger curl up to {}°); {} thread(s) for throughput",
-        r.repeats, r.frames, MAX_ANGLE_DEG, r.threads
+        "curvenet bench: medians of {} bindings and {} frames per mesh (frame 0 neutral, then a finger curl up to {}°); {} thread(s) for throughput; triangular sweeps on {}",
+        r.repeats, r.frames, MAX_ANGLE_DEG, r.threads, r.simd
     );
     let _ = writeln!(s);
     let _ = writeln!(s, "Table 1 (paper columns)");

@@ -1,0 +1,79 @@
+//! Which vector unit the hot loops are compiled for, chosen at run time.
+//!
+//! The release binary is built for the x86-64 baseline (SSE2), so that it
+//! runs on every farm machine; the frame's hot loops (the triangular sweeps
+//! of [`crate::cholesky`]) are compiled a second and third time with
+//! `#[target_feature]` for AVX2 and AVX-512 and picked once per call from
+//! what the CPU reports. The variants execute the same IEEE operations in
+//! the same order — no fused multiply-add, which Rust never contracts on
+//! its own — so a frame's result is bit for bit the same whichever variant
+//! ran: a shot baked on a mixed farm gives the same bytes on every machine.
+//! FMA would be faster still in the widest batches (measured about 1.3× at
+//! 72 columns) but would make the bytes depend on the machine.
+//!
+//! Measured with the 22k and 94k hands' own factors on this machine (AMD
+//! EPYC with AVX-512, 2026-12-02, load 1.4; both sweeps, medians of 41):
+//! 9 columns 0.82 → 0.61 (AVX2) → 0.57 ms (AVX-512) at 22k and 6.2 → 4.8
+//! → 4.4 ms at 94k; 3 columns unchanged (0.52 ms, 3.4 ms: bound by the
+//! factor's memory traffic, not arithmetic); 72 columns (8 frames) 6.5 →
+//! 3.7 → 2.6 ms at 22k and 41 → 33 → 22 ms at 94k.
+
+/// The widest vector extension the running CPU has, of those the hot loops
+/// are compiled for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Simd {
+    /// No extension beyond the build's target (SSE2 on x86-64; every
+    /// non-x86 target).
+    Baseline,
+    /// AVX2 (4 doubles per register).
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    /// AVX-512F (8 doubles per register).
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl Simd {
+    /// The variant for this CPU (the standard library caches the CPUID
+    /// query, so this is a load and a compare per call). The environment
+    /// variable `CURVENET_SIMD=baseline|avx2` caps it, so that the
+    /// variants can be compared on one machine; it is read once.
+    pub fn detect() -> Self {
+        use std::sync::OnceLock;
+        static CHOSEN: OnceLock<Simd> = OnceLock::new();
+        *CHOSEN.get_or_init(|| {
+            let cap = std::env::var("CURVENET_SIMD").unwrap_or_default();
+            Self::best(&cap)
+        })
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn best(cap: &str) -> Self {
+        if cap == "baseline" {
+            return Simd::Baseline;
+        }
+        if cap != "avx2" && std::arch::is_x86_feature_detected!("avx512f") {
+            Simd::Avx512
+        } else if std::arch::is_x86_feature_detected!("avx2") {
+            Simd::Avx2
+        } else {
+            Simd::Baseline
+        }
+    }
+
+    #[cfg(not(target_arch = "x86_64"))]
+    fn best(_cap: &str) -> Self {
+        Simd::Baseline
+    }
+
+    /// Its name, as the bench prints it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Simd::Baseline => "baseline",
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => "avx2",
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => "avx512",
+        }
+    }
+}
