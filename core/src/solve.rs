@@ -236,9 +236,16 @@ impl Binding {
     /// After the harmonic solve (f_v in `ws.rhs9`): y_h via per-cut-face
     /// gradients (line 7) and the Poisson right-hand side (in `ws.rhs3`).
     pub(crate) fn deform_poisson_rhs(&self, ws: &mut Workspace) {
-        let corner_r = if ws.rest_mode { &ws.rest_corner_r[..] } else { &self.corner_r[..] };
         ws.rhs3.iter_mut().for_each(|x| *x = [0.0; 3]);
         self.b.mul_add(&ws.xc, &mut ws.rhs3, -1.0);
+        if !ws.rest_mode {
+            // The binding's corner_r: the per-face sums are precomputed
+            // into one gather per unknown (the same sum, in another order).
+            self.gradient_rhs.add_to(&ws.rhs9, &ws.fc, &mut ws.rhs3);
+            return;
+        }
+        // A frame with its own rest pose: corner_r of that pose, face by face.
+        let corner_r = &ws.rest_corner_r[..];
         for f in 0..self.cut.n_faces() as u32 {
             let hs = self.cut.face_halfedges(f);
             let mut sum = [0.0; 9];

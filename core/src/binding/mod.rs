@@ -300,8 +300,11 @@ pub struct Binding {
     pub(crate) sample_offset: Vec<DVec3>,
     /// Per crossing row: X̌ − lerp(p̌_lo, p̌_hi, t), the crossing's rest offset from the chord.
     pub(crate) crossing_offset: Vec<DVec3>,
-    /// Per corner: (L_f X̌_f)_j, the Poisson right-hand side of a unit gradient.
-    pub(crate) corner_r: Vec<DVec3>,
+    /// The gradient part of the Poisson right-hand side as a gather per
+    /// unknown (frames in the projection pose; [`rhs::GradientRhs`], built
+    /// from every corner's (L_f X̌_f)_j, which the binding does not keep: a
+    /// frame with its own rest pose computes its own).
+    pub(crate) gradient_rhs: rhs::GradientRhs,
     /// Mesh vertices on the curvenet and the constraint rows of their corners
     /// (their output is the mean), CSR by `curve_vertex_start`.
     pub(crate) curve_vertices: Vec<MeshVertex>,
@@ -398,6 +401,8 @@ impl Binding {
             BindTimings { surface_ms, cutting_ms: ms(t1, t2), assembly_ms: ms(t2, t3), factor_ms: ms(t3, t4) };
         let face_laplacian = (&assembled.face_laplacian[..], &assembled.face_laplacian_start[..]);
         let maps = rhs::rhs_maps(&cut, &joined, curvenets, &classified, face_laplacian, cancel)?;
+        let gradient_rhs =
+            rhs::GradientRhs::new(&cut, &classified.corner, &maps.corner_r, classified.unknown_vertex.len());
         let knots = rhs::bind_knots(&surface, curvenets)?;
         let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {
@@ -408,7 +413,7 @@ impl Binding {
             sample_projection: maps.sample_projection,
             sample_offset: maps.sample_offset,
             crossing_offset: maps.crossing_offset,
-            corner_r: maps.corner_r,
+            gradient_rhs,
             curve_vertices: maps.curve_vertices,
             curve_vertex_start: maps.curve_vertex_start,
             curve_vertex_rows: maps.curve_vertex_rows,
@@ -593,7 +598,7 @@ impl Binding {
             + bytes(&self.sample_projection)
             + bytes(&self.sample_offset)
             + bytes(&self.crossing_offset)
-            + bytes(&self.corner_r)
+            + self.gradient_rhs.heap_bytes()
             + bytes(&self.curve_vertices)
             + bytes(&self.curve_vertex_start)
             + bytes(&self.curve_vertex_rows)

@@ -130,3 +130,126 @@ pub(crate) fn bind_knots(surface: &Surface, curvenets: &[&CurvenetLayout]) -> Re
     }
     Ok(knots)
 }
+
+/// The gradient part of the Poisson right-hand side (Algorithm 1, lines
+/// 7–8; Eq. 5) as one gather per unknown, for frames in the projection pose.
+///
+/// Per cut face `f`, `F_f` is the mean of the gradients of its corners that
+/// are not fixed (an unknown's `f_v` from the harmonic solve, a constraint
+/// row's `f_c`), and every unknown corner `h` of `f` receives `F_f r_h`
+/// (`r_h` = `corner_r`). By linearity that is, per unknown `u`,
+/// `Σ_s F_s w_us` with `w_us = Σ_{f ∋ u, s} r_{h(f,u)} / n_f` over the faces
+/// holding both: a fixed sparse operator, built once per binding. A frame
+/// then reads each unknown's few sources (about 7 on a triangle mesh) and
+/// writes its row once, in unknown order, instead of scattering from every
+/// face into rows read in face order: on the 94k hand the face loop stalled
+/// on those scattered loads (a third of its samples on one load under
+/// `perf`). A frame with its own rest pose has per-frame `r_h` and keeps
+/// the face loop ([`Binding::deform_poisson_rhs`](super::Binding)).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct GradientRhs {
+    /// Entries of unknown `u`: `start[u]..start[u + 1]`.
+    start: Vec<u32>,
+    /// Per entry, its source: below `n_unknowns` an unknown (`f_v`), else
+    /// the constraint row `src − n_unknowns` (`f_c`). Sorted within a row.
+    src: Vec<u32>,
+    /// Per entry, `w_us`.
+    weight: Vec<[f64; 3]>,
+    n_unknowns: u32,
+}
+
+impl GradientRhs {
+    pub(crate) fn new(cut: &CutMesh, corner: &[Corner], corner_r: &[DVec3], n_unknowns: usize) -> Self {
+        let source = |c: Corner| match c {
+            Corner::Unknown(u) => Some(u.0),
+            Corner::Constraint(r) => Some(n_unknowns as u32 + r.0),
+            Corner::Fixed => None,
+        };
+        // Row lengths before merging: per unknown corner, its face's sources.
+        let mut start = vec![0u32; n_unknowns + 1];
+        for f in 0..cut.n_faces() as u32 {
+            let hs = cut.face_halfedges(f);
+            let n = hs.clone().filter(|&h| source(corner[h as usize]).is_some()).count() as u32;
+            for h in hs {
+                if let Corner::Unknown(u) = corner[h as usize] {
+                    start[u.0 as usize + 1] += n;
+                }
+            }
+        }
+        for u in 0..n_unknowns {
+            start[u + 1] += start[u];
+        }
+        let total = start[n_unknowns] as usize;
+        let mut src = vec![0u32; total];
+        let mut weight = vec![[0.0; 3]; total];
+        let mut next = start.clone();
+        for f in 0..cut.n_faces() as u32 {
+            let hs = cut.face_halfedges(f);
+            let n = hs.clone().filter(|&h| source(corner[h as usize]).is_some()).count();
+            for h in hs.clone() {
+                let Corner::Unknown(u) = corner[h as usize] else { continue };
+                let w = corner_r[h as usize] / n as f64;
+                for g in hs.clone() {
+                    if let Some(s) = source(corner[g as usize]) {
+                        let e = next[u.0 as usize] as usize;
+                        src[e] = s;
+                        weight[e] = w.to_array();
+                        next[u.0 as usize] += 1;
+                    }
+                }
+            }
+        }
+        // Merge each row's repeated sources (a source shares about two faces with its unknown).
+        let mut out_start = vec![0u32; n_unknowns + 1];
+        let mut m = 0usize;
+        let mut row: Vec<(u32, [f64; 3])> = Vec::new();
+        for u in 0..n_unknowns {
+            row.clear();
+            row.extend((start[u] as usize..start[u + 1] as usize).map(|e| (src[e], weight[e])));
+            row.sort_by_key(|&(s, _)| s);
+            for (k, &(s, w)) in row.iter().enumerate() {
+                if k > 0 && row[k - 1].0 == s {
+                    let acc = &mut weight[m - 1];
+                    for i in 0..3 {
+                        acc[i] += w[i];
+                    }
+                } else {
+                    src[m] = s;
+                    weight[m] = w;
+                    m += 1;
+                }
+            }
+            out_start[u + 1] = m as u32;
+        }
+        src.truncate(m);
+        src.shrink_to_fit();
+        weight.truncate(m);
+        weight.shrink_to_fit();
+        Self { start: out_start, src, weight, n_unknowns: n_unknowns as u32 }
+    }
+
+    /// `rhs3[u] += Σ_s F_s w_us` (`F_s` row-major 3×3: `fv` per unknown, `fc` per constraint row).
+    #[inline]
+    pub(crate) fn add_to(&self, fv: &[[f64; 9]], fc: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
+        let n = self.n_unknowns as usize;
+        for (u, out) in rhs3.iter_mut().enumerate().take(n) {
+            let mut acc = [0.0; 3];
+            for e in self.start[u] as usize..self.start[u + 1] as usize {
+                let s = self.src[e] as usize;
+                let f = if s < n { &fv[s] } else { &fc[s - n] };
+                let w = &self.weight[e];
+                for i in 0..3 {
+                    acc[i] += f[3 * i] * w[0] + f[3 * i + 1] * w[1] + f[3 * i + 2] * w[2];
+                }
+            }
+            for i in 0..3 {
+                out[i] += acc[i];
+            }
+        }
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.start) + bytes(&self.src) + bytes(&self.weight)
+    }
+}
