@@ -36,8 +36,10 @@ pub enum Simd {
 impl Simd {
     /// The variant for this CPU (the standard library caches the CPUID
     /// query, so this is a load and a compare per call). The environment
-    /// variable `CURVENET_SIMD=baseline|avx2` caps it, so that the
-    /// variants can be compared on one machine; it is read once.
+    /// variable `CURVENET_SIMD=baseline|avx2` (any case) caps it, so that
+    /// the variants can be compared on one machine and a suspected
+    /// vector-unit problem ruled out without a rebuild; any other value (or
+    /// none) takes the best the CPU has. It is read once per process.
     pub fn detect() -> Self {
         use std::sync::OnceLock;
         static CHOSEN: OnceLock<Simd> = OnceLock::new();
@@ -49,10 +51,10 @@ impl Simd {
 
     #[cfg(target_arch = "x86_64")]
     fn best(cap: &str) -> Self {
-        if cap == "baseline" {
+        if cap.eq_ignore_ascii_case("baseline") {
             return Simd::Baseline;
         }
-        if cap != "avx2" && std::arch::is_x86_feature_detected!("avx512f") {
+        if !cap.eq_ignore_ascii_case("avx2") && std::arch::is_x86_feature_detected!("avx512f") {
             Simd::Avx512
         } else if std::arch::is_x86_feature_detected!("avx2") {
             Simd::Avx2

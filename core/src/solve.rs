@@ -240,7 +240,8 @@ impl Binding {
         self.b.mul_add(&ws.xc, &mut ws.rhs3, -1.0);
         if !ws.rest_mode {
             // The binding's corner_r: the per-face sums are precomputed
-            // into one gather per unknown (the same sum, in another order).
+            // into one gather per unknown (the same sum regrouped, so equal
+            // up to rounding to the face loop below).
             self.gradient_rhs.add_to(&ws.rhs9, &ws.fc, &mut ws.rhs3);
             return;
         }

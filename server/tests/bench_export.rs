@@ -91,6 +91,18 @@ fn exported_systems_are_solved_by_the_exported_solutions() {
     assert_eq!(a.len() as u64, m["nnz"].as_u64().unwrap());
     assert!(a.iter().filter(|e| e.0 == e.1).count() == n, "every diagonal entry stored once");
     let file = |key: &str| dir.join(m[key].as_str().unwrap());
+    // Each row's mesh vertex: n distinct vertices of the 1,400.
+    let rows: Vec<u32> = std::fs::read(file("unknown_vertex"))
+        .unwrap()
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    assert_eq!(rows.len(), n, "one vertex per unknown");
+    let mut distinct = rows.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    assert_eq!(distinct.len(), n, "unknowns map to distinct vertices");
+    assert!(rows.iter().all(|&v| v < 1400), "vertices of the 1.4k hand");
     for (rhs, sol, k) in [("rhs9", "x9", 9), ("rhs3", "x3", 3)] {
         let (b, x) = (read_f64(&file(rhs)), read_f64(&file(sol)));
         assert_eq!((b.len(), x.len()), (n * k, n * k), "{rhs}, {sol}: n×{k}");

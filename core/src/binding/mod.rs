@@ -402,7 +402,7 @@ impl Binding {
         let face_laplacian = (&assembled.face_laplacian[..], &assembled.face_laplacian_start[..]);
         let maps = rhs::rhs_maps(&cut, &joined, curvenets, &classified, face_laplacian, cancel)?;
         let gradient_rhs =
-            rhs::GradientRhs::new(&cut, &classified.corner, &maps.corner_r, classified.unknown_vertex.len());
+            rhs::GradientRhs::new(&cut, &classified.corner, &maps.corner_r, classified.unknown_vertex.len(), cancel)?;
         let knots = rhs::bind_knots(&surface, curvenets)?;
         let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {

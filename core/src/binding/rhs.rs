@@ -151,7 +151,8 @@ pub(crate) struct GradientRhs {
     /// Entries of unknown `u`: `start[u]..start[u + 1]`.
     start: Vec<u32>,
     /// Per entry, its source: below `n_unknowns` an unknown (`f_v`), else
-    /// the constraint row `src − n_unknowns` (`f_c`). Sorted within a row.
+    /// the constraint row `src − n_unknowns` (`f_c`); within a row in the
+    /// order the faces first meet them.
     src: Vec<u32>,
     /// Per entry, `w_us`.
     weight: Vec<[f64; 3]>,
@@ -159,7 +160,13 @@ pub(crate) struct GradientRhs {
 }
 
 impl GradientRhs {
-    pub(crate) fn new(cut: &CutMesh, corner: &[Corner], corner_r: &[DVec3], n_unknowns: usize) -> Self {
+    pub(crate) fn new(
+        cut: &CutMesh,
+        corner: &[Corner],
+        corner_r: &[DVec3],
+        n_unknowns: usize,
+        cancel: &Cancel,
+    ) -> Result<Self> {
         let source = |c: Corner| match c {
             Corner::Unknown(u) => Some(u.0),
             Corner::Constraint(r) => Some(n_unknowns as u32 + r.0),
@@ -168,6 +175,7 @@ impl GradientRhs {
         // Row lengths before merging: per unknown corner, its face's sources.
         let mut start = vec![0u32; n_unknowns + 1];
         for f in 0..cut.n_faces() as u32 {
+            cancel.check_every(f as usize, "assembly")?;
             let hs = cut.face_halfedges(f);
             let n = hs.clone().filter(|&h| source(corner[h as usize]).is_some()).count() as u32;
             for h in hs {
@@ -199,21 +207,27 @@ impl GradientRhs {
                 }
             }
         }
-        // Merge each row's repeated sources (a source shares about two faces with its unknown).
+        // Merge each row's repeated sources (a source shares about two faces
+        // with its unknown), in place: `slot[s]` is where source `s` went in
+        // the row being merged (positions before the row are stale).
+        let n_src = src.iter().map(|&s| s as usize + 1).max().unwrap_or(0);
+        let mut slot = vec![u32::MAX; n_src];
         let mut out_start = vec![0u32; n_unknowns + 1];
         let mut m = 0usize;
-        let mut row: Vec<(u32, [f64; 3])> = Vec::new();
         for u in 0..n_unknowns {
-            row.clear();
-            row.extend((start[u] as usize..start[u + 1] as usize).map(|e| (src[e], weight[e])));
-            row.sort_by_key(|&(s, _)| s);
-            for (k, &(s, w)) in row.iter().enumerate() {
-                if k > 0 && row[k - 1].0 == s {
-                    let acc = &mut weight[m - 1];
+            cancel.check_every(u, "assembly")?;
+            let row_begin = m;
+            for e in start[u] as usize..start[u + 1] as usize {
+                let (s, w) = (src[e], weight[e]);
+                let p = slot[s as usize];
+                if p != u32::MAX && p as usize >= row_begin {
+                    let acc = &mut weight[p as usize];
                     for i in 0..3 {
                         acc[i] += w[i];
                     }
                 } else {
+                    // m <= e: the entry was read before its place is reused.
+                    slot[s as usize] = m as u32;
                     src[m] = s;
                     weight[m] = w;
                     m += 1;
@@ -225,7 +239,7 @@ impl GradientRhs {
         src.shrink_to_fit();
         weight.truncate(m);
         weight.shrink_to_fit();
-        Self { start: out_start, src, weight, n_unknowns: n_unknowns as u32 }
+        Ok(Self { start: out_start, src, weight, n_unknowns: n_unknowns as u32 })
     }
 
     /// `rhs3[u] += Σ_s F_s w_us` (`F_s` row-major 3×3: `fv` per unknown, `fc` per constraint row).

@@ -12,6 +12,9 @@
 //! - `<mesh>.rhs3.f64`, `<mesh>.x3.f64`: Eq. 5's right-hand side and its
 //!   solution x_v (n×3 positions): raw little-endian f64, column-major (all
 //!   n values of column 0, then column 1, ...), no header;
+//! - `<mesh>.unknown_vertex.u32`: per unknown (row of the matrix and the
+//!   vectors) its mesh vertex, 0-based, raw little-endian u32 (the binding
+//!   numbers unknowns along a space-filling curve, not in vertex order);
 //! - `manifest.json`: per mesh the file names, `n`, `nnz` (stored entries
 //!   of the lower triangle), `columns`, the frame (`index` of `frames` of
 //!   the bench's finger curl, its angle) and the format of each file.
@@ -38,6 +41,7 @@ pub(super) struct Exported {
     pub x9: String,
     pub rhs3: String,
     pub x3: String,
+    pub unknown_vertex: String,
     pub frame: ExportedFrame,
 }
 
@@ -60,6 +64,7 @@ struct Format {
     vectors: &'static str,
     rhs9: &'static str,
     rhs3: &'static str,
+    unknown_vertex: &'static str,
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
@@ -107,6 +112,14 @@ pub(super) fn export_mesh(
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
         std::fs::write(&path, bytes).map_err(io_err(&path))?;
     }
+    let unknown_vertex = name("unknown_vertex.u32");
+    {
+        let path = dir.join(&unknown_vertex);
+        let bytes: Vec<u8> = (0..a.n as u32)
+            .flat_map(|u| binding.unknown_vertex(curvenet_core::ids::Unknown(u)).0.to_le_bytes())
+            .collect();
+        std::fs::write(&path, bytes).map_err(io_err(&path))?;
+    }
     Ok(Exported {
         mesh: mesh.to_string(),
         n: a.n,
@@ -116,6 +129,7 @@ pub(super) fn export_mesh(
         x9: name("x9.f64"),
         rhs3: name("rhs3.f64"),
         x3: name("x3.f64"),
+        unknown_vertex,
         frame,
     })
 }
@@ -128,6 +142,7 @@ pub(super) fn write_manifest(dir: &Path, meshes: &[Exported]) -> CliResult {
             vectors: "raw little-endian f64, column-major (column 0's n values first), no header",
             rhs9: "Eq. 4: n x 9, per unknown a row-major 3x3 deformation gradient; x9 its solution",
             rhs3: "Eq. 5: n x 3 positions; x3 its solution",
+            unknown_vertex: "per unknown (row) its mesh vertex, 0-based, raw little-endian u32",
         },
         meshes,
     };
