@@ -59,6 +59,7 @@ fn bench_json_reports_the_hand_1k4_fixture() {
         "solve_max_ms",
         "tri9_ms",
         "tri3_ms",
+        "rest_pose_frame_ms",
         "reference_ms",
         "solve_over_reference",
         "serial_frames_per_s",
