@@ -75,8 +75,13 @@ pub struct SymmetricTriplets {
 #[derive(Debug, Clone)]
 pub struct Cholesky {
     n: usize,
-    /// `perm[k]` = original index of permuted row `k`.
+    /// `perm[k]` = original index of permuted row `k` (the identity once
+    /// the caller renumbered its unknowns: [`Self::into_factor_order`]).
     perm: Vec<u32>,
+    /// After [`Self::into_factor_order`]: the order the symbolic analysis
+    /// was made in (`renumbered[k]` = the analysed matrix's row of the
+    /// caller's row `k`), for [`Self::refactor`]; `None` before.
+    renumbered: Option<Vec<u32>>,
     /// L in compressed columns, the diagonal first in each column.
     col_ptr: Vec<u32>,
     row_idx: Vec<u32>,
@@ -128,13 +133,66 @@ impl Cholesky {
     /// Factors a matrix with the same pattern as the one this factor was
     /// built from (new values), reusing the ordering and symbolic analysis.
     pub fn refactor(&self, a: &SymmetricTriplets) -> Result<Self> {
-        let mat = to_faer(a)?;
         if a.n != self.n {
             return Err(Error::CountMismatch { what: "refactored matrix size", expected: self.n, got: a.n });
         }
+        let mat = match &self.renumbered {
+            None => to_faer(a)?,
+            Some(p) => {
+                // The caller's rows are in the factor's order: back to the
+                // order the symbolic analysis was made in.
+                let mut entries = Vec::with_capacity(a.entries.len());
+                for &(r, c, v) in &a.entries {
+                    let (pr, pc) = match (p.get(r as usize), p.get(c as usize)) {
+                        (Some(&pr), Some(&pc)) if r >= c => (pr, pc),
+                        _ => {
+                            return Err(Error::Internal {
+                                what: format!(
+                                    "triplet ({r}, {c}) is not in the lower triangle of a {0}×{0} matrix",
+                                    a.n
+                                ),
+                            });
+                        }
+                    };
+                    entries.push((pr.max(pc), pr.min(pc), v));
+                }
+                to_faer(&SymmetricTriplets { n: a.n, entries })?
+            }
+        };
         let mut f = Self::numeric(self.symbolic.clone(), &mat)?;
         f.ordering = self.ordering;
+        if let Some(p) = &self.renumbered {
+            f = f.into_factor_order().0;
+            debug_assert_eq!(f.renumbered.as_deref(), Some(&p[..]));
+        }
         Ok(f)
+    }
+
+    /// For a caller that renumbers its unknowns into the factor's order:
+    /// returns the factor of that renumbered matrix (`P A Pᵀ = L Lᵀ`, so
+    /// the same L with the identity permutation) and the permutation
+    /// (`perm[k]` = the old index of new row `k`). Solves then need no
+    /// gather and scatter ([`Self::solve_in_place`] works on the rows as
+    /// they are; [`Self::permutation`] is the identity), and rows the
+    /// factor visits one after another are next to each other in the
+    /// caller's arrays too. [`Self::refactor`] takes matrices in the new
+    /// numbering.
+    pub fn into_factor_order(mut self) -> (Self, Vec<u32>) {
+        let identity: Vec<u32> = (0..self.n as u32).collect();
+        let perm = std::mem::replace(&mut self.perm, identity);
+        let analysed = match self.renumbered.take() {
+            // Already renumbered: the analysed order composes.
+            Some(old) => perm.iter().map(|&k| old[k as usize]).collect(),
+            None => perm.clone(),
+        };
+        self.renumbered = Some(analysed);
+        (self, perm)
+    }
+
+    /// Whether rows are already in the factor's order (the permutation is
+    /// the identity: [`Self::into_factor_order`]).
+    pub fn in_factor_order(&self) -> bool {
+        self.renumbered.is_some()
     }
 
     fn numeric(symbolic: Arc<SymbolicCholesky<u32>>, mat: &SparseColMat<u32, f64>) -> Result<Self> {
@@ -204,7 +262,17 @@ impl Cholesky {
                 (col_ptr, row_idx, values)
             }
         };
-        Ok(Self { n, perm, col_ptr, row_idx, values, symbolic, ordering: Ordering::Amd, analysis_ms: 0.0 })
+        Ok(Self {
+            n,
+            perm,
+            renumbered: None,
+            col_ptr,
+            row_idx,
+            values,
+            symbolic,
+            ordering: Ordering::Amd,
+            analysis_ms: 0.0,
+        })
     }
 
     /// Size of the factored matrix.
@@ -242,6 +310,11 @@ impl Cholesky {
         let n = self.n;
         assert_eq!(rhs.len(), n, "right-hand side rows");
         assert_eq!(work.len(), n, "scratch rows");
+        if self.renumbered.is_some() {
+            // The identity permutation: the same sweeps on the rows in place.
+            self.sweep::<K>(rhs);
+            return;
+        }
         for (k, w) in work.iter_mut().enumerate() {
             *w = rhs[self.perm[k] as usize];
         }
@@ -520,7 +593,8 @@ impl Cholesky {
                     * idx
             }
         };
-        bytes(&self.perm) + bytes(&self.col_ptr) + bytes(&self.row_idx) + bytes(&self.values) + perm + raw
+        let renumbered = self.renumbered.as_ref().map_or(0, |r| bytes(r));
+        bytes(&self.perm) + renumbered + bytes(&self.col_ptr) + bytes(&self.row_idx) + bytes(&self.values) + perm + raw
     }
 }
 
@@ -686,6 +760,58 @@ mod tests {
         check::<9>(&f);
         check::<13>(&f);
         check::<72>(&f);
+    }
+
+    /// A factor renumbered into its own order solves the renumbered matrix
+    /// (rows permuted by the returned permutation) bit for bit as the
+    /// original factor solves the original one, without a permutation, and
+    /// refactors matrices given in the new numbering.
+    #[test]
+    fn a_factor_in_its_own_order_solves_the_renumbered_matrix() {
+        let a = grid(40, 0.0);
+        let f = Cholesky::new(&a).unwrap();
+        let (g, perm) = f.clone().into_factor_order();
+        assert!(g.in_factor_order() && !f.in_factor_order());
+        assert!(g.permutation().iter().enumerate().all(|(k, &p)| p as usize == k));
+        assert_ne!(perm, g.permutation(), "AMD moved rows of the grid");
+        let mut inv = vec![0u32; a.n];
+        for (k, &p) in perm.iter().enumerate() {
+            inv[p as usize] = k as u32;
+        }
+        let renumber = |m: &SymmetricTriplets| SymmetricTriplets {
+            n: m.n,
+            entries: m
+                .entries
+                .iter()
+                .map(|&(r, c, v)| {
+                    let (r, c) = (inv[r as usize], inv[c as usize]);
+                    (r.max(c), r.min(c), v)
+                })
+                .collect(),
+        };
+        let rhs: Vec<[f64; 3]> = (0..a.n).map(|i| [i as f64, ((i * 7) % 5) as f64 - 2.0, 1.0]).collect();
+        let (mut x, mut work) = (rhs.clone(), vec![[0.0; 3]; a.n]);
+        f.solve_in_place(&mut x, &mut work);
+        let mut y: Vec<[f64; 3]> = perm.iter().map(|&p| rhs[p as usize]).collect();
+        g.solve_in_place(&mut y, &mut work);
+        for (k, &p) in perm.iter().enumerate() {
+            assert_eq!(y[k], x[p as usize], "row {k}");
+        }
+        // Refactoring the renumbered matrix with doubled values halves the solution.
+        let mut doubled = renumber(&a);
+        doubled.entries.iter_mut().for_each(|e| e.2 *= 2.0);
+        let h = g.refactor(&doubled).unwrap();
+        assert!(h.in_factor_order());
+        let mut z: Vec<[f64; 3]> = perm.iter().map(|&p| rhs[p as usize]).collect();
+        h.solve_in_place(&mut z, &mut work);
+        for (k, &p) in perm.iter().enumerate() {
+            for c in 0..3 {
+                assert!((2.0 * z[k][c] - x[p as usize][c]).abs() <= 1e-12 * (1.0 + x[p as usize][c].abs()));
+            }
+        }
+        // An upper-triangle triplet is refused, naming it.
+        let bad = SymmetricTriplets { n: a.n, entries: vec![(0, 1, 1.0)] };
+        assert!(matches!(g.refactor(&bad), Err(Error::Internal { .. })));
     }
 
     #[test]

@@ -37,6 +37,23 @@ impl Csr {
         Self { nrows, ncols, row_ptr, col, val }
     }
 
+    /// The matrix with its rows reordered: row `k` of the result is row
+    /// `perm[k]` of `self` (`perm` a permutation of the rows).
+    pub fn permute_rows(&self, perm: &[u32]) -> Self {
+        assert_eq!(perm.len(), self.nrows, "a permutation of the rows");
+        let mut row_ptr = Vec::with_capacity(self.nrows + 1);
+        let mut col = Vec::with_capacity(self.col.len());
+        let mut val = Vec::with_capacity(self.val.len());
+        row_ptr.push(0u32);
+        for &r in perm {
+            let range = self.row_ptr[r as usize] as usize..self.row_ptr[r as usize + 1] as usize;
+            col.extend_from_slice(&self.col[range.clone()]);
+            val.extend_from_slice(&self.val[range]);
+            row_ptr.push(col.len() as u32);
+        }
+        Self { nrows: self.nrows, ncols: self.ncols, row_ptr, col, val }
+    }
+
     pub fn nrows(&self) -> usize {
         self.nrows
     }

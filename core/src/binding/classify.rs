@@ -38,6 +38,24 @@ impl Classified {
     pub fn n_rows(&self, joined: &Joined) -> usize {
         joined.n_slots as usize + self.crossings.len()
     }
+
+    /// Renumbers the unknowns: new unknown `k` is old unknown `perm[k]`
+    /// (the factor's order, [`crate::cholesky::Cholesky::into_factor_order`]).
+    pub fn renumber_unknowns(&mut self, perm: &[u32]) {
+        let mut new_of = vec![0u32; perm.len()];
+        for (k, &old) in perm.iter().enumerate() {
+            new_of[old as usize] = k as u32;
+        }
+        for c in &mut self.corner {
+            if let Corner::Unknown(u) = c {
+                *u = Unknown(new_of[u.index()]);
+            }
+        }
+        for u in self.vertex_unknown.iter_mut().flatten() {
+            *u = Unknown(new_of[u.index()]);
+        }
+        self.unknown_vertex = perm.iter().map(|&old| self.unknown_vertex[old as usize]).collect();
+    }
 }
 
 /// Classifies the corners of `cut`. Components no curvenet touches are

@@ -367,17 +367,28 @@ impl Binding {
         let mut warnings = drawing::check_drawing(&surface, &cut, &joined, curvenets, options.strict)?;
         let t2 = Instant::now();
 
-        let classified = classify::classify(&surface, &cut, &joined, options.strict, cancel, &mut warnings)?;
+        let mut classified = classify::classify(&surface, &cut, &joined, options.strict, cancel, &mut warnings)?;
         let (islands, island_samples) = cut.islands_removed();
         if islands > 0 {
             warnings.push(BindWarning::IslandsRemoved { islands, samples: island_samples });
         }
         let (n_u, n_c) = (classified.unknown_vertex.len(), classified.n_rows(&joined));
-        let assembled =
+        let mut assembled =
             assemble::assemble(&cut, &classified.corner, (n_u, n_c), options.lambda, cancel, &mut warnings)?;
         cancel.check("the factorisation")?;
         let t3 = Instant::now();
-        let factor = assemble::factor(assembled.system, &classified.unknown_vertex, &classified.vertex_component)?;
+        let factor = assemble::factor(
+            std::mem::take(&mut assembled.system),
+            &classified.unknown_vertex,
+            &classified.vertex_component,
+        )?;
+        // From here on the unknowns are numbered in the factor's order: the
+        // solves need no permutation, and the per-unknown arrays a frame
+        // reads are in the order the sweeps visit them (AMD on the
+        // spatially numbered system keeps neighbours near each other).
+        let (factor, perm) = factor.into_factor_order();
+        classified.renumber_unknowns(&perm);
+        assembled.b = assembled.b.permute_rows(&perm);
         let t4 = Instant::now();
         cancel.check("the factorisation")?;
 
