@@ -593,7 +593,7 @@ impl Cholesky {
                     * idx
             }
         };
-        let renumbered = self.renumbered.as_ref().map_or(0, |r| bytes(r));
+        let renumbered = self.renumbered.as_ref().map_or(0, bytes);
         bytes(&self.perm) + renumbered + bytes(&self.col_ptr) + bytes(&self.row_idx) + bytes(&self.values) + perm + raw
     }
 }
