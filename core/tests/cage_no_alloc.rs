@@ -4,34 +4,14 @@
 
 mod cage_common;
 mod common;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod counting;
 
 use cage_common::hand_rig;
 use curvenet_core::cage::{CageFrame, CageRevApproximation, CoupledWorkspace};
 use curvenet_core::skinning::SkinningMethod;
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn a_coupled_cage_frame_does_not_allocate() {
@@ -49,11 +29,11 @@ fn a_coupled_cage_frame_does_not_allocate() {
         ..Default::default()
     };
     rig.evaluate(&frame(&frames[0]), &mut ws, &mut out).unwrap();
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = counting::allocations();
     for pose in &frames {
         rig.evaluate(&frame(pose), &mut ws, &mut out).unwrap();
         rig.evaluate(&CageFrame { joint_transforms: Some(pose), ..Default::default() }, &mut ws, &mut out).unwrap();
     }
-    let made = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    let made = counting::allocations() - before;
     assert_eq!(made, 0, "allocations in 6 coupled frames after the first");
 }

@@ -3,34 +3,14 @@
 //! allocator sees no other thread.
 
 mod common;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod counting;
 
 use common::*;
 use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use curvenet_core::{Adjustment, Curvenet, CurvenetLayout, Mat3, Rotate, SamplingOptions};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting::Counting = counting::Counting;
 
 #[test]
 fn per_frame_evaluation_does_not_allocate() {
@@ -94,12 +74,12 @@ fn frames_in_groups() {
     // Warm-up: the group's workspaces, each with the buffers its frames' modes need.
     deformer.frames(&frames, &mut outs).unwrap();
     deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = counting::allocations();
     for _ in 0..3 {
         deformer.frames(&frames, &mut outs).unwrap();
         deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = counting::allocations();
     assert_eq!(after - before, 0, "Deformer::frames allocated");
     for out in &outs {
         assert!(out.points.iter().zip(&pts).any(|(o, p)| (o[2] - p[2]).abs() > 1e-3), "a frame did not move the mesh");
@@ -139,7 +119,7 @@ fn whole_frame_solve() {
         Adjustment::new(0, knot(2)).with_rotate(Rotate::Quaternion([0.9, 0.1, 0.0, 0.3])).with_attach_tangents(false),
         Adjustment::new(0, knot(1)).with_tangent_translates(vec![[0.0, 0.0, 0.02]; tangents(knot(1))]),
     ];
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = counting::allocations();
     for rest in [None, Some(rest.as_slice())] {
         for adjustments in [&[][..], &adjustments[..]] {
             let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest, adjustments };
@@ -148,7 +128,7 @@ fn whole_frame_solve() {
         let input = curvenet_core::FrameInput { posed: &[None], rest, adjustments: &adjustments };
         binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = counting::allocations();
     assert_eq!(after - before, 0, "Binding::deform allocated");
     assert!(out.iter().zip(&pts).any(|(o, p)| (o[2] - p[2]).abs() > 1e-3), "the frame moved the mesh");
 }
@@ -165,14 +145,14 @@ fn curvenet_evaluation() {
     let mut f: Vec<[Mat3; 2]> = vec![[[[0.0; 3]; 3]; 2]; layout.n_segments()];
     let mut fc: Vec<Mat3> = vec![[[0.0; 3]; 3]; layout.constraints().len()];
 
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = counting::allocations();
     for _ in 0..3 {
         layout.sampling().samples_into(&pose, &mut samples).unwrap();
         scaled_frames_into(&layout, &samples, &mut frames).unwrap();
         deformation_gradients_into(&layout, layout.neutral_frames(), &frames, &mut f).unwrap();
         constraint_gradients_into(layout.constraints(), &f, &mut fc).unwrap();
     }
-    let after = ALLOCATIONS.load(Ordering::SeqCst);
+    let after = counting::allocations();
     assert_eq!(after - before, 0, "the per-frame path allocated");
 
     // And it computed something: F = R on curves meeting an intersection.
