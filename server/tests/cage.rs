@@ -13,18 +13,10 @@ use curvenet_core::{CurvenetInput, Deformer, Frame, PolyMesh};
 use curvenet_schema::usd::{CurvenetSkinningMethod, Stage, read_points_overrides};
 
 mod common;
-use common::{curvenet, repo, stderr};
+use common::{curvenet, max_dist, repo, stderr};
 
 const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
 const CAGE_ONLY: &str = "fixtures/shots/hand_cage_only/shot.usda";
-
-fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .fold(0.0, f64::max)
-}
 
 /// The shot evaluated in process: the coupled rig built from the stage's
 /// cage, skeleton and skin, then the plain curvenet solve (no rig) with the

@@ -71,21 +71,7 @@ impl Server {
                 }
             });
         }
-        let (tx, rx) = std::sync::mpsc::channel();
-        let mut stdout = child.stdout.take().unwrap();
-        std::thread::spawn(move || {
-            let mut line = Vec::new();
-            let mut byte = [0u8; 1];
-            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
-                if byte[0] == b'\n' {
-                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
-                    line.clear();
-                } else {
-                    line.push(byte[0]);
-                }
-            }
-        });
-        let first = rx.recv_timeout(Duration::from_secs(30)).expect("the server prints its address");
+        let first = common::first_stdout_line(&mut child, Duration::from_secs(30));
         let addr = first.strip_prefix("listening on http://").expect("listening on ...").parse().unwrap();
         Self { child, addr, log }
     }

@@ -22,6 +22,7 @@ use serde_json::{Value, json};
 const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
 
 use common::Served as Server;
+use common::max_dist;
 
 async fn post(client: &reqwest::Client, url: &str, body: &impl serde::Serialize) -> (u16, Vec<u8>) {
     let r = client.post(url).json(body).send().await.unwrap();
@@ -154,14 +155,6 @@ impl Shot {
         deformer.frame(&input, &mut out, None).unwrap();
         out
     }
-}
-
-fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .fold(0.0, f64::max)
 }
 
 /// Every coordinate of `got` (the f32 wire answer) is `want` rounded to

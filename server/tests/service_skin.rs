@@ -18,7 +18,7 @@ use tower::ServiceExt as _;
 
 #[allow(dead_code)] // the helpers this file does not use
 mod common;
-use common::{curvenet, repo, stderr};
+use common::{curvenet, max_dist, repo, stderr};
 
 const SHOT: &str = "fixtures/shots/hand_rigged/shot.usda";
 
@@ -106,14 +106,6 @@ impl Shot {
             ..FrameRequest::default()
         }
     }
-}
-
-fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .fold(0.0, f64::max)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -11,7 +11,7 @@ use curvenet_schema::usd::{CurvenetSkinning, Stage, read_points_overrides};
 use openusd::sdf::Value;
 
 mod common;
-use common::{curvenet, repo, stderr};
+use common::{curvenet, max_dist, repo, stderr};
 
 const SHOT: &str = "fixtures/shots/hand_rigged/shot.usda";
 const DQS: &str = "fixtures/shots/hand_rigged/dqs.usda";
@@ -23,14 +23,6 @@ fn usdskel(prim: &str, t: f64) -> Vec<[f64; 3]> {
         Ok(Some(Value::Vec3fVec(p))) => p.iter().map(|p| [p.x as f64, p.y as f64, p.z as f64]).collect(),
         other => panic!("{prim}.points: {other:?}"),
     }
-}
-
-fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .fold(0.0, f64::max)
 }
 
 /// The existing curvenet solve of the rigged shot with a given rest pose per

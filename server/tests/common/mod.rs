@@ -41,7 +41,6 @@ pub struct Served {
 #[allow(dead_code)]
 impl Served {
     pub fn start(extra: &[&str]) -> Self {
-        use std::io::Read as _;
         use std::process::Stdio;
         let mut child = Command::new(env!("CARGO_BIN_EXE_curvenet"))
             .args(["serve", "--addr", "127.0.0.1:0", "--solve-threads", "2"])
@@ -53,21 +52,7 @@ impl Served {
             .stderr(Stdio::null())
             .spawn()
             .expect("curvenet serve starts");
-        let mut stdout = child.stdout.take().unwrap();
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            let mut line = Vec::new();
-            let mut byte = [0u8; 1];
-            while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
-                if byte[0] == b'\n' {
-                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
-                    line.clear();
-                } else {
-                    line.push(byte[0]);
-                }
-            }
-        });
-        let first = rx.recv_timeout(std::time::Duration::from_secs(120)).expect("the server prints its address");
+        let first = first_stdout_line(&mut child, std::time::Duration::from_secs(120));
         let url = first.strip_prefix("listening on ").expect("listening on ...").to_string();
         Self { child, url }
     }
@@ -78,4 +63,37 @@ impl Drop for Served {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// The largest distance between corresponding points of `a` and `b` (same length).
+#[allow(dead_code)]
+pub fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
+        .fold(0.0, f64::max)
+}
+
+/// The first line `child` prints on its (piped) stdout, waiting up to
+/// `timeout`; a thread keeps draining the rest so the child never blocks
+/// on a full pipe.
+#[allow(dead_code)]
+pub fn first_stdout_line(child: &mut std::process::Child, timeout: std::time::Duration) -> String {
+    use std::io::Read as _;
+    let mut stdout = child.stdout.take().expect("stdout is piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = Vec::new();
+        let mut byte = [0u8; 1];
+        while stdout.read(&mut byte).is_ok_and(|n| n == 1) {
+            if byte[0] == b'\n' {
+                let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
+                line.clear();
+            } else {
+                line.push(byte[0]);
+            }
+        }
+    });
+    rx.recv_timeout(timeout).expect("the server prints its address")
 }
