@@ -10,7 +10,7 @@
 mod common;
 
 use curvenet_core::deformer::{CageInput, Rig};
-use curvenet_core::skinning::{self, Influences, Mat4, Skeleton, Skin, SkinningMethod};
+use curvenet_core::skinning::{Influences, Mat4, Skeleton, Skin, SkinningMethod};
 use curvenet_core::{CurvenetInput, Deformer, DeformerInput, Frame};
 use curvenet_schema::usd::{CurvenetSkinning, CurvenetSkinningMethod, Stage, read_points_overrides};
 use curvenet_schema::wire::{
@@ -116,27 +116,13 @@ impl Shot {
         Deformer::new(&input).unwrap()
     }
 
-    /// UsdSkel's skinning transforms at `t`, in the mesh's space.
-    fn transforms(&self, t: f64) -> Vec<Mat4> {
-        let local = self.stage.joint_local_transforms(&self.rig, Some(t)).unwrap();
-        let mut out = vec![skinning::IDENTITY; local.len()];
-        self.skeleton.skinning_transforms(&local, &mut out).unwrap();
-        let to_mesh = self.stage.skel_to_mesh_transform(&self.rig, Some(t)).unwrap();
-        if to_mesh != skinning::IDENTITY {
-            for m in &mut out {
-                *m = skinning::mul(m, &to_mesh);
-            }
-        }
-        out
-    }
-
     /// Frame `t`: joint transforms, the rest cage and the posed-cage offsets.
     fn frame(&self, t: f64) -> FrameRequest {
         let rest = self.stage.rest_points(&self.mesh, Some(t)).unwrap();
         assert_eq!(rest, self.mesh.projection_points, "the shot's mesh points are not animated");
         let edits = self.cage.frame(Some(t));
         FrameRequest {
-            joint_transforms: Some(self.transforms(t)),
+            joint_transforms: Some(common::skinning_transforms(&self.stage, &self.rig, &self.skeleton, t)),
             rest_cage: edits.rest_cage().map(<[_]>::to_vec),
             posed_cage_offsets: edits.posed_cage_offsets().map(<[_]>::to_vec),
             ..FrameRequest::default()

@@ -6,7 +6,7 @@
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{Request, StatusCode, header};
-use curvenet_core::skinning::{self, Mat4, Skeleton, SkinningMethod};
+use curvenet_core::skinning::{Mat4, Skeleton, SkinningMethod};
 use curvenet_schema::usd::{CurvenetSkinning, Stage, read_points_overrides};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, BlendShapeMode, CurvenetSkinSpec, FrameRequest, FrameResponse, SkinMethod,
@@ -80,20 +80,6 @@ impl Shot {
         Self { stage, mesh, rig, skeleton, request }
     }
 
-    /// UsdSkel's skinning transforms at `t`, in the mesh's space.
-    fn transforms(&self, t: f64) -> Vec<Mat4> {
-        let local = self.stage.joint_local_transforms(&self.rig, Some(t)).unwrap();
-        let mut out = vec![skinning::IDENTITY; local.len()];
-        self.skeleton.skinning_transforms(&local, &mut out).unwrap();
-        let to_mesh = self.stage.skel_to_mesh_transform(&self.rig, Some(t)).unwrap();
-        if to_mesh != skinning::IDENTITY {
-            for m in &mut out {
-                *m = skinning::mul(m, &to_mesh);
-            }
-        }
-        out
-    }
-
     /// Frame `t` as joint transforms and blend-shape weights (the mesh's own
     /// points only when they differ from the projection pose).
     fn frame(&self, t: f64) -> FrameRequest {
@@ -102,7 +88,7 @@ impl Shot {
             rest: (rest != self.mesh.projection_points).then_some(rest),
             blend_shape_weights: Some(self.stage.blend_shape_weights(&self.mesh, Some(t)).unwrap()),
             blend_shape_mode: BlendShapeMode::Before,
-            joint_transforms: Some(self.transforms(t)),
+            joint_transforms: Some(common::skinning_transforms(&self.stage, &self.rig, &self.skeleton, t)),
             ..FrameRequest::default()
         }
     }

@@ -97,3 +97,26 @@ pub fn first_stdout_line(child: &mut std::process::Child, timeout: std::time::Du
     });
     rx.recv_timeout(timeout).expect("the server prints its address")
 }
+
+/// UsdSkel's skinning transforms of `rig` at `t`, in the mesh's space (the
+/// client's side of a skinned frame request; the bake reads them through
+/// `cli::rig::JointReader`).
+#[allow(dead_code)]
+pub fn skinning_transforms(
+    stage: &curvenet_schema::usd::Stage,
+    rig: &curvenet_schema::usd::SkinRig,
+    skeleton: &curvenet_core::skinning::Skeleton,
+    t: f64,
+) -> Vec<curvenet_core::skinning::Mat4> {
+    use curvenet_core::skinning;
+    let local = stage.joint_local_transforms(rig, Some(t)).unwrap();
+    let mut out = vec![skinning::IDENTITY; local.len()];
+    skeleton.skinning_transforms(&local, &mut out).unwrap();
+    let to_mesh = stage.skel_to_mesh_transform(rig, Some(t)).unwrap();
+    if to_mesh != skinning::IDENTITY {
+        for m in &mut out {
+            *m = skinning::mul(m, &to_mesh);
+        }
+    }
+    out
+}
