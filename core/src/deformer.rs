@@ -437,22 +437,22 @@ impl Deformer {
         batch.rows.resize(u * width, 0.0);
         let rows = &mut batch.rows[..u * width];
         for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.gather_permuted(s.ws.harmonic_rows(), rows, width, i);
+            self.binding.gather_block(s.ws.harmonic_rows(), rows, width, i);
         }
         self.binding.solve_permuted(width, rows);
         for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.scatter_permuted(rows, width, i, s.ws.harmonic_rows());
+            self.binding.scatter_block(rows, width, i, s.ws.harmonic_rows());
             self.binding.deform_poisson_rhs(&mut s.ws);
         }
         // The Poisson solve: 3 columns per frame.
         let width = 3 * k;
         let rows = &mut batch.rows[..u * width];
         for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.gather_permuted(s.ws.poisson_rows(), rows, width, i);
+            self.binding.gather_block(s.ws.poisson_rows(), rows, width, i);
         }
         self.binding.solve_permuted(width, rows);
         for (i, ((frame, out), s)) in frames.iter().zip(outs.iter_mut()).zip(scratches.iter_mut()).enumerate() {
-            self.binding.scatter_permuted(rows, width, i, s.ws.poisson_rows());
+            self.binding.scatter_block(rows, width, i, s.ws.poisson_rows());
             self.finish(frame, s, out.points, out.gradients.as_deref_mut()).map_err(|e| (i, e))?;
         }
         Ok(())

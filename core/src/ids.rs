@@ -11,9 +11,10 @@
 //!   corners are a contiguous range; a halfedge stands for the corner at its
 //!   tail. [`CutFace`]: the cut-mesh's faces (each lies in one input face).
 //! - [`Unknown`]: a column of `V` (a mesh vertex off the curvenet in a
-//!   component the curvenet touches), numbered along a Morton curve over
-//!   the vertices' positions (locality of the per-unknown arrays; not the
-//!   mesh's vertex order): map with `Binding::unknown_vertex` /
+//!   component the curvenet touches), numbered in the order of the
+//!   binding's Cholesky factor (the system is first numbered along a Morton
+//!   curve over the vertices' positions, then renumbered into AMD's order;
+//!   not the mesh's vertex order): map with `Binding::unknown_vertex` /
 //!   `Binding::vertex_unknown`.
 //! - [`ConstraintRow`]: a column of `C`: the curvenets' slots first (curvenet
 //!   after curvenet), then one row per (crossing cut-vertex, segment, side).

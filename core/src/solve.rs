@@ -456,34 +456,25 @@ impl Workspace {
 }
 
 impl Binding {
-    /// Copies one frame's right-hand side `src` (original unknown order)
-    /// into columns `slot * C .. (slot + 1) * C` of `rows`, a block of
-    /// `width` interleaved columns in the factor's row order.
-    pub(crate) fn gather_permuted<const C: usize>(
-        &self,
-        src: &[[f64; C]],
-        rows: &mut [f64],
-        width: usize,
-        slot: usize,
-    ) {
+    /// Copies one frame's right-hand side `src` into columns `slot * C ..
+    /// (slot + 1) * C` of `rows`, a block of `width` interleaved columns.
+    /// The binding numbers its unknowns in the factor's order
+    /// ([`crate::cholesky::Cholesky::into_factor_order`]), so row `k` of
+    /// the block is unknown `k`.
+    pub(crate) fn gather_block<const C: usize>(&self, src: &[[f64; C]], rows: &mut [f64], width: usize, slot: usize) {
+        debug_assert!(self.factor.in_factor_order());
         let c0 = slot * C;
-        for (row, &orig) in rows.chunks_exact_mut(width).zip(self.factor.permutation()) {
-            row[c0..c0 + C].copy_from_slice(&src[orig as usize]);
+        for (row, s) in rows.chunks_exact_mut(width).zip(src) {
+            row[c0..c0 + C].copy_from_slice(s);
         }
     }
 
-    /// The inverse of [`Self::gather_permuted`]: columns `slot * C ..` of
-    /// `rows` back into one frame's `dst` (original unknown order).
-    pub(crate) fn scatter_permuted<const C: usize>(
-        &self,
-        rows: &[f64],
-        width: usize,
-        slot: usize,
-        dst: &mut [[f64; C]],
-    ) {
+    /// The inverse of [`Self::gather_block`]: columns `slot * C ..` of
+    /// `rows` back into one frame's `dst`.
+    pub(crate) fn scatter_block<const C: usize>(&self, rows: &[f64], width: usize, slot: usize, dst: &mut [[f64; C]]) {
         let c0 = slot * C;
-        for (row, &orig) in rows.chunks_exact(width).zip(self.factor.permutation()) {
-            dst[orig as usize].copy_from_slice(&row[c0..c0 + C]);
+        for (row, d) in rows.chunks_exact(width).zip(dst) {
+            d.copy_from_slice(&row[c0..c0 + C]);
         }
     }
 

@@ -137,11 +137,12 @@ pub(crate) fn classify(
         }
     }
     // Unknowns are numbered along a space-filling curve over the vertices'
-    // positions, not in the mesh's vertex order, so that the unknowns one
-    // face touches sit near each other in every per-unknown array a frame
-    // reads (f_v, the right-hand sides, the output): meshes from scans,
+    // positions, not in the mesh's vertex order: meshes from scans,
     // remeshers and DCC exports often list their vertices in no spatial
     // order (hand_94k: 55% of a face's unknowns more than 512 rows apart).
+    // AMD, run on the system in this numbering, then gives an order that
+    // keeps neighbours near each other, into which the binding renumbers
+    // the unknowns after factoring (`Binding::new`).
     let mut unknown_vertex: Vec<MeshVertex> = (0..n_vertices)
         .filter(|&v| {
             let c = vertex_component[v];
