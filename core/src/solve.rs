@@ -41,9 +41,13 @@ pub struct Workspace {
     frames: Vec<Vec<[ScaledFrame; 2]>>,
     gradients: Vec<Vec<[Mat3; 2]>>,
     slot_f: Vec<Mat3>,
-    fc: Vec<[f64; 9]>,
+    /// The 9-column gradients, one array so that a gather reads either
+    /// kind without a branch: rows `..n_unknowns` are the harmonic system's
+    /// right-hand side, then its solution f_v; rows `n_unknowns..` are the
+    /// constraint rows' f_c.
+    grad9: Vec<[f64; 9]>,
+    n_unknowns: usize,
     xc: Vec<[f64; 3]>,
-    rhs9: Vec<[f64; 9]>,
     work9: Vec<[f64; 9]>,
     rhs3: Vec<[f64; 3]>,
     work3: Vec<[f64; 3]>,
@@ -74,9 +78,9 @@ impl Binding {
             frames: self.layouts.iter().map(|l| vec![[zero_frame; 2]; l.n_segments()]).collect(),
             gradients: self.layouts.iter().map(|l| vec![[[[0.0; 3]; 3]; 2]; l.n_segments()]).collect(),
             slot_f: vec![[[0.0; 3]; 3]; self.n_slots],
-            fc: vec![[0.0; 9]; self.n_constraints()],
+            grad9: vec![[0.0; 9]; self.n_unknowns() + self.n_constraints()],
+            n_unknowns: self.n_unknowns(),
             xc: vec![[0.0; 3]; self.n_constraints()],
-            rhs9: vec![[0.0; 9]; self.n_unknowns()],
             work9: vec![[0.0; 9]; self.n_unknowns()],
             rhs3: vec![[0.0; 3]; self.n_unknowns()],
             work3: vec![[0.0; 3]; self.n_unknowns()],
@@ -130,7 +134,7 @@ impl Binding {
 
     /// A frame up to its first solve: checks, the rest pose, the curvenet
     /// deformation, the constraint rows and the harmonic right-hand side
-    /// (in `ws.rhs9`). `n_out`: the length of the caller's output.
+    /// (in `ws.grad9[..n_unknowns]`). `n_out`: the length of the caller's output.
     pub(crate) fn deform_harmonic_rhs(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
@@ -203,37 +207,39 @@ impl Binding {
             (&self.sample_offset[..], &self.crossing_offset[..])
         };
         // Slot rows: F and p = q − F (q̌ − p̌) (line 8).
+        let n_u = ws.n_unknowns;
         for (r, f) in ws.slot_f.iter().enumerate() {
             let m = mat(f);
             let sample = self.slot_sample[r] as usize;
             let q = self.posed_sample(ws, sample);
             let p = q - m * sample_offset[sample];
-            ws.fc[r] = flat(f);
+            ws.grad9[n_u + r] = flat(f);
             ws.xc[r] = p.to_array();
         }
         // Crossing rows: interpolated along the segment, plus the crossing's own offset.
         for (c, row) in self.crossings.iter().enumerate() {
             let r = self.n_slots + c;
-            let (lo, hi) = (ws.fc[row.lo as usize], ws.fc[row.hi as usize]);
+            let (lo, hi) = (ws.grad9[n_u + row.lo as usize], ws.grad9[n_u + row.hi as usize]);
             let mut f = [0.0; 9];
             for i in 0..9 {
                 f[i] = lo[i] + row.t * (hi[i] - lo[i]);
             }
             let p = DVec3::from_array(ws.xc[row.lo as usize]).lerp(DVec3::from_array(ws.xc[row.hi as usize]), row.t)
                 + unflat(&f) * crossing_offset[c];
-            ws.fc[r] = f;
+            ws.grad9[n_u + r] = f;
             ws.xc[r] = p.to_array();
         }
         if let Some((r, _)) = ws.xc.iter().enumerate().find(|(_, p)| !p.iter().all(|x| x.is_finite())) {
             return Err(Error::NonFinite { what: "constraint position", index: r, value: ws.xc[r] });
         }
         // The harmonic right-hand side for f_v (line 6, Eq. 4).
-        ws.rhs9.iter_mut().for_each(|x| *x = [0.0; 9]);
-        self.b.mul_add(&ws.fc, &mut ws.rhs9, -1.0);
+        let (rhs9, fc) = ws.grad9.split_at_mut(n_u);
+        rhs9.fill([0.0; 9]);
+        self.b.mul_add(fc, rhs9, -1.0);
         Ok(())
     }
 
-    /// After the harmonic solve (f_v in `ws.rhs9`): y_h via per-cut-face
+    /// After the harmonic solve (f_v in `ws.grad9[..n_unknowns]`): y_h via per-cut-face
     /// gradients (line 7) and the Poisson right-hand side (in `ws.rhs3`).
     pub(crate) fn deform_poisson_rhs(&self, ws: &mut Workspace) {
         ws.rhs3.iter_mut().for_each(|x| *x = [0.0; 3]);
@@ -242,7 +248,7 @@ impl Binding {
             // The binding's corner_r: the per-face sums are precomputed
             // into one gather per unknown (the same sum regrouped, so equal
             // up to rounding to the face loop below).
-            self.gradient_rhs.add_to(&ws.rhs9, &ws.fc, &mut ws.rhs3);
+            self.gradient_rhs.add_to(&ws.grad9, &mut ws.rhs3);
             return;
         }
         // A frame with its own rest pose: corner_r of that pose, face by face.
@@ -253,8 +259,8 @@ impl Binding {
             let mut n = 0.0;
             for h in hs.clone() {
                 let v = match self.corner[h as usize] {
-                    Corner::Unknown(u) => &ws.rhs9[u.index()],
-                    Corner::Constraint(r) => &ws.fc[r.index()],
+                    Corner::Unknown(u) => &ws.grad9[u.index()],
+                    Corner::Constraint(r) => &ws.grad9[ws.n_unknowns + r.index()],
                     Corner::Fixed => continue,
                 };
                 for i in 0..9 {
@@ -313,7 +319,7 @@ impl Binding {
             }
             g.iter_mut().for_each(|x| *x = flat(&crate::curvenet::IDENTITY));
             for (u, &v) in self.unknown_vertex.iter().enumerate() {
-                g[v.index()] = ws.rhs9[u];
+                g[v.index()] = ws.grad9[u];
             }
             for (k, &v) in self.curve_vertices.iter().enumerate() {
                 let rows = &self.curve_vertex_rows
@@ -321,7 +327,7 @@ impl Binding {
                 let mut m = [0.0; 9];
                 for &r in rows {
                     for i in 0..9 {
-                        m[i] += ws.fc[r as usize][i] / rows.len() as f64;
+                        m[i] += ws.grad9[ws.n_unknowns + r as usize][i] / rows.len() as f64;
                     }
                 }
                 g[v.index()] = m;
@@ -428,9 +434,8 @@ impl Workspace {
             + nested_bytes(&self.frames)
             + nested_bytes(&self.gradients)
             + bytes(&self.slot_f)
-            + bytes(&self.fc)
+            + bytes(&self.grad9)
             + bytes(&self.xc)
-            + bytes(&self.rhs9)
             + bytes(&self.work9)
             + bytes(&self.rhs3)
             + bytes(&self.work3)
@@ -448,7 +453,7 @@ impl Workspace {
 /// harmonic system's 9 columns and the Poisson system's 3, per unknown.
 impl Workspace {
     pub(crate) fn harmonic_rows(&mut self) -> &mut [[f64; 9]] {
-        &mut self.rhs9
+        &mut self.grad9[..self.n_unknowns]
     }
     pub(crate) fn poisson_rows(&mut self) -> &mut [[f64; 3]] {
         &mut self.rhs3
@@ -490,7 +495,7 @@ impl Binding {
 impl Binding {
     /// The harmonic solve of one frame ([`Self::deform`]'s first solve).
     pub(crate) fn solve_harmonic(&self, ws: &mut Workspace) {
-        self.solve_in_place(&mut ws.rhs9, &mut ws.work9);
+        self.solve_in_place(&mut ws.grad9[..ws.n_unknowns], &mut ws.work9);
     }
     /// The Poisson solve of one frame ([`Self::deform`]'s second solve).
     pub(crate) fn solve_poisson(&self, ws: &mut Workspace) {

@@ -150,8 +150,9 @@ pub(crate) fn bind_knots(surface: &Surface, curvenets: &[&CurvenetLayout]) -> Re
 pub(crate) struct GradientRhs {
     /// Entries of unknown `u`: `start[u]..start[u + 1]`.
     start: Vec<u32>,
-    /// Per entry, its source: below `n_unknowns` an unknown (`f_v`), else
-    /// the constraint row `src − n_unknowns` (`f_c`); within a row in the
+    /// Per entry, its source: the row of the workspace's `grad9` (below
+    /// `n_unknowns` an unknown's `f_v`, else the constraint row
+    /// `src − n_unknowns`'s `f_c`); within a row in the
     /// order the faces first meet them.
     src: Vec<u32>,
     /// Per entry, `w_us`.
@@ -242,15 +243,16 @@ impl GradientRhs {
         Ok(Self { start: out_start, src, weight, n_unknowns: n_unknowns as u32 })
     }
 
-    /// `rhs3[u] += Σ_s F_s w_us` (`F_s` row-major 3×3: `fv` per unknown, `fc` per constraint row).
+    /// `rhs3[u] += Σ_s F_s w_us` (`F_s` row-major 3×3, `grad9[s]`: the
+    /// unknowns' f_v, then the constraint rows' f_c, in one array so that
+    /// the gather does not branch on the kind of its source).
     #[inline]
-    pub(crate) fn add_to(&self, fv: &[[f64; 9]], fc: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
+    pub(crate) fn add_to(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
         let n = self.n_unknowns as usize;
         for (u, out) in rhs3.iter_mut().enumerate().take(n) {
             let mut acc = [0.0; 3];
             for e in self.start[u] as usize..self.start[u + 1] as usize {
-                let s = self.src[e] as usize;
-                let f = if s < n { &fv[s] } else { &fc[s - n] };
+                let f = &grad9[self.src[e] as usize];
                 let w = &self.weight[e];
                 for i in 0..3 {
                     acc[i] += f[3 * i] * w[0] + f[3 * i + 1] * w[1] + f[3 * i + 2] * w[2];
