@@ -432,6 +432,15 @@ impl Deformer {
         for (i, ((frame, out), s)) in frames.iter().zip(outs.iter()).zip(scratches.iter_mut()).enumerate() {
             self.stage(frame, s, out.points.len()).map_err(|e| (i, e))?;
         }
+        if k == 1 {
+            // A group of one solves in its own workspace, as `frame` does:
+            // the interleaved block would only be a copy of it.
+            let (s, out) = (&mut scratches[0], &mut outs[0]);
+            self.binding.solve_harmonic(&mut s.ws);
+            self.binding.deform_poisson_rhs(&mut s.ws);
+            self.binding.solve_poisson(&mut s.ws);
+            return self.finish(&frames[0], s, out.points, out.gradients.as_deref_mut()).map_err(|e| (0, e));
+        }
         // The harmonic solve: 9 columns per frame.
         let width = 9 * k;
         batch.rows.resize(u * width, 0.0);
