@@ -764,8 +764,9 @@ impl<'s> Registry<'s> {
         }
 
         let mut out = Builder::default();
-        let mut boundary_key: HashMap<(u32, u32), u32> =
-            HashMap::with_capacity_and_hasher(he.n_halfedges() + 4 * pieces.len(), Default::default());
+        // Halfedges on input edges, `(tail, head, cut halfedge)`, twinned
+        // below by their ends.
+        let mut boundary: Vec<(u32, u32, u32)> = Vec::with_capacity(he.n_halfedges() + 4 * pieces.len());
         let mut removed_vertices = vec![false; self.vertices.len()];
         let (mut n_islands, mut n_island_samples) = (0usize, 0usize);
         let mut pslg = Pslg::default();
@@ -787,7 +788,7 @@ impl<'s> Registry<'s> {
                     out.segment.push(seg.map_or(INVALID, |x| x.0));
                     out.forward.push(seg.is_some_and(|x| x.1));
                     out.twin.push(INVALID);
-                    boundary_key.insert((ca, cb), gh);
+                    boundary.push((ca, cb, gh));
                 }
                 out.face_start.push(out.tail.len() as u32);
                 continue;
@@ -851,7 +852,7 @@ impl<'s> Registry<'s> {
                     out.forward.push(fwd);
                     out.twin.push(INVALID);
                     if pslg.is_boundary(e) {
-                        boundary_key.insert((ca, cb), gh);
+                        boundary.push((ca, cb, gh));
                     }
                 }
                 out.face_start.push(out.tail.len() as u32);
@@ -868,11 +869,7 @@ impl<'s> Registry<'s> {
             }
         }
         // Boundary twins across input edges.
-        for (&(a, b), &g) in &boundary_key {
-            if let Some(&t) = boundary_key.get(&(b, a)) {
-                out.twin[g as usize] = t;
-            }
-        }
+        twin_boundary(&boundary, self.vertices.len(), &mut out.twin);
         for v in &mut sample_vertex {
             if *v != INVALID && removed_vertices[*v as usize] {
                 *v = INVALID;
@@ -1160,5 +1157,37 @@ impl CutMesh {
             + bytes(&self.touches)
             + self.extra_curve.capacity() * std::mem::size_of::<(u32, Vec<crate::binding::cut::CurvePoint>)>()
             + self.extra_curve.values().map(bytes).sum::<usize>()
+    }
+}
+
+/// Twins the halfedges on input edges: `(a, b, g)` and `(b, a, t)` are
+/// twins. Bucketed by tail vertex (linear time; a hash map of all of them
+/// was a tenth of the 376k binding). Should one directed edge appear twice
+/// (it cannot on a validated manifold), the later entry is the edge's, as a
+/// map's insert would keep it, and the earlier one gets no twin.
+fn twin_boundary(boundary: &[(u32, u32, u32)], n_vertices: usize, twin: &mut [u32]) {
+    let mut start = vec![0u32; n_vertices + 1];
+    for &(a, _, _) in boundary {
+        start[a as usize + 1] += 1;
+    }
+    for v in 0..n_vertices {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut by_tail = vec![(0u32, 0u32); boundary.len()];
+    for &(a, b, g) in boundary {
+        by_tail[fill[a as usize] as usize] = (b, g);
+        fill[a as usize] += 1;
+    }
+    let bucket = |v: u32| &by_tail[start[v as usize] as usize..start[v as usize + 1] as usize];
+    // The last entry of the directed edge a -> b, if any.
+    let last = |a: u32, b: u32| bucket(a).iter().rev().find(|e| e.0 == b).map(|e| e.1);
+    for &(a, b, g) in boundary {
+        if last(a, b) != Some(g) {
+            continue;
+        }
+        if let Some(t) = last(b, a) {
+            twin[g as usize] = t;
+        }
     }
 }

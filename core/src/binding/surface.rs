@@ -74,14 +74,19 @@ impl Surface {
     /// (see [`Surface::split_faces`]); one that cannot be split is refused.
     pub fn new(mesh: &PolyMesh, points: &[[f64; 3]]) -> Result<Self> {
         mesh.check_points(points, "mesh point")?;
-        Halfedges::new(mesh)?;
+        let input_halfedges = Halfedges::new(mesh)?;
         let p: Vec<DVec3> = points.iter().map(|&x| DVec3::from_array(x)).collect();
-        // Split folded faces first, so the surface's faces are all flat enough.
+        let diagonal = bounding_box_diagonal(points);
+        // One pass over the input's faces: their planes, 2-D corners and
+        // triangles, and the folded faces to split. When nothing folds (the
+        // usual case) that is the surface; otherwise the split mesh is
+        // validated and planed again.
         let mut split_faces = Vec::new();
         let mut counts = Vec::with_capacity(mesh.n_faces());
         let mut indices = Vec::with_capacity(mesh.face_vertex_indices().len());
         let mut input_face = Vec::with_capacity(mesh.n_faces());
         let mut corners3 = Vec::new();
+        let mut planed = Planed::with_capacity(mesh.n_faces(), input_halfedges.n_halfedges());
         for (f, face) in mesh.faces().enumerate() {
             corners3.clear();
             corners3.extend(face.iter().map(|&v| p[v as usize]));
@@ -96,38 +101,36 @@ impl Surface {
                     split_faces.push(f as u32);
                 }
                 Err(e) => return Err(e),
-                Ok(_) => {
+                Ok((plane, poly)) => {
                     counts.push(face.len() as u32);
                     indices.extend_from_slice(face);
                     input_face.push(f as u32);
+                    if split_faces.is_empty() {
+                        planed.push(plane, poly, f)?;
+                    }
                 }
             }
         }
-        let mesh =
-            if split_faces.is_empty() { mesh.clone() } else { PolyMesh::new(&counts, &indices, mesh.n_vertices())? };
-        let halfedges = Halfedges::new(&mesh)?;
-        let diagonal = bounding_box_diagonal(points);
-        let mut planes = Vec::with_capacity(mesh.n_faces());
-        let mut corners_2d = Vec::with_capacity(halfedges.n_halfedges());
-        let mut triangles = Vec::with_capacity(halfedges.n_halfedges());
-        let mut scratch = Vec::new();
-        let mut face_tri_start = vec![0u32];
-        for (f, face) in mesh.faces().enumerate() {
-            corners3.clear();
-            corners3.extend(face.iter().map(|&v| p[v as usize]));
-            let named = |e: Error| match e {
-                Error::FoldedFace { .. } => Error::FoldedFace { face: input_face[f] as usize },
-                e => e,
-            };
-            let (plane, poly) = face_plane(input_face[f] as usize, face, &corners3).map_err(named)?;
-            let start = corners_2d.len() as u32;
-            corners_2d.extend(poly);
-            triangulate(&corners_2d[start as usize..], &mut scratch)
-                .ok_or(Error::FoldedFace { face: input_face[f] as usize })?;
-            triangles.extend(scratch.iter().map(|t| t.map(|k| start + k)));
-            face_tri_start.push(triangles.len() as u32);
-            planes.push(plane);
-        }
+        let (mesh, halfedges) = if split_faces.is_empty() {
+            (mesh.clone(), input_halfedges)
+        } else {
+            drop(input_halfedges);
+            let mesh = PolyMesh::new(&counts, &indices, mesh.n_vertices())?;
+            let halfedges = Halfedges::new(&mesh)?;
+            planed = Planed::with_capacity(mesh.n_faces(), halfedges.n_halfedges());
+            for (f, face) in mesh.faces().enumerate() {
+                corners3.clear();
+                corners3.extend(face.iter().map(|&v| p[v as usize]));
+                let named = |e: Error| match e {
+                    Error::FoldedFace { .. } => Error::FoldedFace { face: input_face[f] as usize },
+                    e => e,
+                };
+                let (plane, poly) = face_plane(input_face[f] as usize, face, &corners3).map_err(named)?;
+                planed.push(plane, poly, input_face[f] as usize)?;
+            }
+            (mesh, halfedges)
+        };
+        let Planed { planes, corners_2d, triangles, face_tri_start, .. } = planed;
         let vertex_of = |h: u32| halfedges.tail(h);
         let tri_vertices: Vec<([u32; 3], u32)> =
             triangles.iter().map(|t| (t.map(vertex_of), halfedges.face(t[0]))).collect();
@@ -216,6 +219,40 @@ impl Surface {
 
 /// The plane of face `f` (corners `face` at `corners3`) and its corners in
 /// it: coincident corners, zero area and folding are typed errors.
+/// The per-face parts of a surface, face after face: planes, 2-D corners
+/// (one per halfedge) and their triangulation.
+struct Planed {
+    planes: Vec<FacePlane>,
+    corners_2d: Vec<DVec2>,
+    triangles: Vec<[u32; 3]>,
+    face_tri_start: Vec<u32>,
+    scratch: Vec<[u32; 3]>,
+}
+
+impl Planed {
+    fn with_capacity(faces: usize, halfedges: usize) -> Self {
+        Self {
+            planes: Vec::with_capacity(faces),
+            corners_2d: Vec::with_capacity(halfedges),
+            triangles: Vec::with_capacity(halfedges),
+            face_tri_start: vec![0],
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Appends the next face (`input_face`: its face in the input mesh, for errors).
+    fn push(&mut self, plane: FacePlane, poly: Vec<DVec2>, input_face: usize) -> Result<()> {
+        let start = self.corners_2d.len() as u32;
+        self.corners_2d.extend(poly);
+        triangulate(&self.corners_2d[start as usize..], &mut self.scratch)
+            .ok_or(Error::FoldedFace { face: input_face })?;
+        self.triangles.extend(self.scratch.iter().map(|t| t.map(|k| start + k)));
+        self.face_tri_start.push(self.triangles.len() as u32);
+        self.planes.push(plane);
+        Ok(())
+    }
+}
+
 fn face_plane(f: usize, face: &[u32], corners3: &[DVec3]) -> Result<(FacePlane, Vec<DVec2>)> {
     let va = vector_area(corners3);
     let area = va.length();
