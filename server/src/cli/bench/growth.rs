@@ -46,7 +46,11 @@ pub(super) struct GrowthBench {
     pub analysis_ms: f64,
     /// `Deformer::new` less the analysis, median.
     pub binding_ms: f64,
+    pub surface_ms: f64,
+    pub cutting_ms: f64,
+    pub assembly_ms: f64,
     pub factor_ms: f64,
+    pub binding_other_ms: f64,
     pub frames: usize,
     pub solve_ms: f64,
     /// The base mesh's frame median in this run, if it was benched.
@@ -153,14 +157,21 @@ pub(super) fn bench_growth(
     let context = format!("{} {}", file.display(), mesh.path);
     let peak_rss_reset = reset_peak_rss();
     let (mut analysis, mut binding, mut factor) = (vec![], vec![], vec![]);
+    let (mut surface, mut cutting, mut assembly, mut other) = (vec![], vec![], vec![], vec![]);
     let mut bound = None;
     for _ in 0..repeats.max(1) {
         drop(bound.take());
         let (deformer, lap) = build(&mesh, &nets, &context)?;
         let tm = deformer.timings();
         analysis.push(tm.analysis_ms);
-        binding.push(lap.wall_ms - tm.analysis_ms);
-        factor.push(tm.binding.factor_ms);
+        let b = tm.binding;
+        let wall = lap.wall_ms - tm.analysis_ms;
+        binding.push(wall);
+        surface.push(b.surface_ms);
+        cutting.push(b.cutting_ms);
+        assembly.push(b.assembly_ms);
+        factor.push(b.factor_ms);
+        other.push(wall - (b.surface_ms + b.cutting_ms + b.assembly_ms + b.factor_ms));
         bound = Some(deformer);
     }
     let deformer = bound.expect("at least one binding");
@@ -185,7 +196,11 @@ pub(super) fn bench_growth(
         repeats: repeats.max(1),
         analysis_ms: median(analysis),
         binding_ms,
+        surface_ms: median(surface),
+        cutting_ms: median(cutting),
+        assembly_ms: median(assembly),
         factor_ms: median(factor),
+        binding_other_ms: median(other),
         frames,
         solve_ms,
         base_solve_ms,
@@ -240,12 +255,16 @@ pub(super) fn text(g: &GrowthBench) -> String {
     let scope = if g.peak_rss_reset { "this part" } else { "whole process" };
     let _ = writeln!(
         s,
-        "  unknowns {}, L nnz {} ({}), binding {:.0} ms (factor {:.0} ms; analysis {:.0} ms apart), frame {:.1} ms, binding {:.0} bytes/vertex, peak RSS {peak} ({scope})",
+        "  unknowns {}, L nnz {} ({}), binding {:.0} ms (surface {:.0}, cutting {:.0}, assembly {:.0}, factor {:.0}, other {:.0} ms; analysis {:.0} ms apart), frame {:.1} ms, binding {:.0} bytes/vertex, peak RSS {peak} ({scope})",
         g.unknowns,
         g.factor_nonzeros,
         g.ordering,
         g.binding_ms,
+        g.surface_ms,
+        g.cutting_ms,
+        g.assembly_ms,
         g.factor_ms,
+        g.binding_other_ms,
         g.analysis_ms,
         g.solve_ms,
         g.binding_bytes_per_vertex
