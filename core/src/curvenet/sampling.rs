@@ -648,10 +648,11 @@ mod tests {
         out
     }
 
-    /// Random splines (seeded, the seed in every message), piece counts
-    /// around the chunk and stack sizes: the parameters equal the
-    /// one-piece-at-a-time reference bit for bit, and every vector variant
-    /// of the cumulative lengths equals the portable one bit for bit.
+    /// Random splines (a fixed seed; every message names the case and the
+    /// spline), piece counts around the chunk and stack sizes: the
+    /// parameters equal the one-piece-at-a-time reference bit for bit, and
+    /// every vector variant of the piece lengths equals the portable one
+    /// bit for bit.
     #[test]
     fn chunked_walk_equals_the_reference_bit_for_bit() {
         let mut state = 0x9E37_79B9_7F4A_7C15u64;
