@@ -56,8 +56,8 @@ impl Halfedges {
         // Twins: sort halfedges by undirected edge `(a, b)`, `a < b`: a
         // counting sort on `a` (the mesh's vertex indices are in range),
         // then each vertex's few entries by `(b, h)` — the order a full sort
-        // of the triples gives, in linear time (a whole-array sort was the
-        // largest part of this at 376k vertices).
+        // of the triples gives, in linear time (the whole-array sort stood
+        // out in the 376k-vertex binding's profile).
         let head = |h: usize| tail[next[h] as usize];
         let key = |h: usize| {
             let (a, b) = (tail[h], head(h));

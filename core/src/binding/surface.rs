@@ -217,8 +217,6 @@ impl Surface {
     }
 }
 
-/// The plane of face `f` (corners `face` at `corners3`) and its corners in
-/// it: coincident corners, zero area and folding are typed errors.
 /// The per-face parts of a surface, face after face: planes, 2-D corners
 /// (one per halfedge) and their triangulation.
 struct Planed {
@@ -253,6 +251,8 @@ impl Planed {
     }
 }
 
+/// The plane of face `f` (corners `face` at `corners3`) and its corners in
+/// it: coincident corners, zero area and folding are typed errors.
 fn face_plane(f: usize, face: &[u32], corners3: &[DVec3]) -> Result<(FacePlane, Vec<DVec2>)> {
     let va = vector_area(corners3);
     let area = va.length();
