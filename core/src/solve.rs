@@ -246,8 +246,8 @@ impl Binding {
         self.b.mul_add(&ws.xc, &mut ws.rhs3, -1.0);
         if !ws.rest_mode {
             // The binding's corner_r: the per-face sums are precomputed
-            // into one gather per unknown (the same sum regrouped, so equal
-            // up to rounding to the face loop below).
+            // into one sparse operator, applied source by source (the same
+            // sum regrouped, so equal up to rounding to the face loop below).
             self.gradient_rhs.add_to(&ws.grad9, &mut ws.rhs3);
             return;
         }

@@ -300,8 +300,8 @@ pub struct Binding {
     pub(crate) sample_offset: Vec<DVec3>,
     /// Per crossing row: X̌ − lerp(p̌_lo, p̌_hi, t), the crossing's rest offset from the chord.
     pub(crate) crossing_offset: Vec<DVec3>,
-    /// The gradient part of the Poisson right-hand side as a gather per
-    /// unknown (frames in the projection pose; [`rhs::GradientRhs`], built
+    /// The gradient part of the Poisson right-hand side as a fixed sparse
+    /// operator from the gradients to the unknowns (frames in the projection pose; [`rhs::GradientRhs`], built
     /// from every corner's (L_f X̌_f)_j, which the binding does not keep: a
     /// frame with its own rest pose computes its own).
     pub(crate) gradient_rhs: rhs::GradientRhs,
