@@ -84,6 +84,14 @@ pub enum Error {
     /// A segment's chord crosses the boundary of the face it was traced in.
     #[error("{segment} crosses the boundary of face {face} (the face is too curved for its chord)")]
     SegmentCrossesFaceBoundary { segment: SegmentRef, face: u32 },
+    /// A curve whose samples all land on one point of the surface (a curve
+    /// shorter than the cutting's snapping tolerance, drawn over a mesh
+    /// vertex or edge): it has no length on the surface to cut along.
+    #[error(
+        "{segment} collapses onto one point of the surface at {position:?}: the curve is shorter there than \
+         the binding can cut along (draw it longer, or remove it)"
+    )]
+    CurveCollapsedOnSurface { segment: SegmentRef, position: [f64; 3] },
     /// A connected component no curvenet touches, refused in strict mode.
     #[error("mesh component {component} ({vertices} vertices) is touched by no curvenet")]
     UntouchedComponent { component: usize, vertices: usize },

@@ -378,3 +378,35 @@ fn a_curve_drawn_twice_and_a_curvenet_bound_twice_are_refused() {
     assert_eq!((segment.curvenet, other.curvenet), (1, 0), "{e}");
     println!("bound twice: {e}");
 }
+
+/// A whole curve far shorter than the snapping tolerance drawn over a mesh
+/// vertex or edge: its samples all land on one point of the surface, so it
+/// has nothing to cut along. Refused naming the curve's spline and the
+/// point (it was an internal error); the same curve inside a face is an
+/// island and binds.
+#[test]
+fn a_curve_collapsing_onto_one_surface_point_is_refused_naming_it() {
+    let (mesh, pts) = heightfield(20, |_, _| 0.0);
+    // Over vertex (0.5, 0.5) and over the midpoint of an edge, alone and beside a curve that binds.
+    for (at, len) in [([0.5, 0.5], 1e-7), ([0.525, 0.5], 1e-7), ([0.5, 0.5], 1e-5)] {
+        for beside in [false, true] {
+            let mut net = NetBuilder::default();
+            if beside {
+                net.segment([0.1, 0.3, 0.01], [0.9, 0.3, 0.01], [0.0; 3]);
+            }
+            let tiny = net.segment([at[0], at[1], 0.001], [at[0] + len, at[1], 0.001], [0.0; 3]);
+            let e = bind(&mesh, &pts, &net, false).unwrap_err();
+            let Error::CurveCollapsedOnSurface { segment, position } = e else {
+                panic!("tiny curve at {at:?} (length {len:e}, beside another: {beside}): {e}")
+            };
+            assert_eq!((segment.curvenet, segment.spline), (0, tiny as u32), "{e}");
+            assert!((position[0] - at[0]).abs() < 1e-3 && (position[1] - at[1]).abs() < 1e-3, "{e}");
+            println!("{e}");
+        }
+    }
+    // Inside a face: removed as an island, the rest binds.
+    let mut net = NetBuilder::default();
+    net.segment([0.1, 0.3, 0.01], [0.9, 0.3, 0.01], [0.0; 3]);
+    net.segment([0.53, 0.47, 0.001], [0.53 + 1e-7, 0.47, 0.001], [0.0; 3]);
+    bind(&mesh, &pts, &net, false).unwrap();
+}

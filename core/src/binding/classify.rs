@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::halfedge::INVALID;
 use crate::ids::{ConstraintRow, MeshVertex, Unknown};
 
-use super::cut::{CROSSING, CutMesh, MESH_VERTEX, SAMPLE};
+use super::cut::{CROSSING, CurvePoint, CutMesh, MESH_VERTEX, SAMPLE};
 use super::join::{HEAD, Joined, TAIL};
 use super::{BindWarning, Corner, CrossingRow, Surface};
 
@@ -58,6 +58,23 @@ impl Classified {
     }
 }
 
+/// The error for cut-vertex `v`, on the curvenet but reached by no curve
+/// halfedge: every sample of its curve landed on this one point (a curve
+/// shorter than the snapping tolerance over a mesh vertex or edge). Names
+/// a segment of that curve; an internal error if `v` holds none.
+fn collapsed(cut: &CutMesh, joined: &Joined, v: u32) -> Error {
+    let cv = cut.vertex(v);
+    let segment = match cv.curve {
+        CurvePoint::Sample(s) => joined.segments.iter().position(|pair| pair.contains(&s)),
+        CurvePoint::Crossing { segment, .. } => Some(segment as usize),
+        CurvePoint::None => None,
+    };
+    match segment.and_then(|s| joined.segment_ref.get(s)) {
+        Some(&segment) => Error::CurveCollapsedOnSurface { segment, position: cv.pos.to_array() },
+        None => Error::Internal { what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it") },
+    }
+}
+
 /// Classifies the corners of `cut`. Components no curvenet touches are
 /// refused with `strict`, otherwise reported in `warnings`.
 pub(crate) fn classify(
@@ -83,9 +100,7 @@ pub(crate) fn classify(
         if cv.mask & MESH_VERTEX != 0 {
             vertex_is_curve[v as usize] = true;
         }
-        let (seg, side, end) = curve_side(cut, h).ok_or_else(|| Error::Internal {
-            what: format!("cut-vertex {v} is on the curvenet but no curve halfedge reaches it"),
-        })?;
+        let (seg, side, end) = curve_side(cut, h).ok_or_else(|| collapsed(cut, joined, v))?;
         // A vertex the segment's path passes through takes a crossing row
         // of that segment; one of its samples, the sample's slot.
         let row = match cut.crossing_t(v, seg) {

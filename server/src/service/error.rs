@@ -431,6 +431,11 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
             d.face = Some(*face as usize);
             Code::BindingFailed
         }
+        E::CurveCollapsedOnSurface { segment: s, position } => {
+            segment(d, s);
+            d.position = Some(*position);
+            Code::BindingFailed
+        }
         E::UntouchedComponent { component, .. } => {
             d.component = Some(*component);
             Code::BindingFailed
@@ -535,6 +540,7 @@ fn is_mesh_error(e: &curvenet_core::Error) -> bool {
         | E::CurvesOverlap { .. }
         | E::CurvesCross { .. }
         | E::SegmentCrossesFaceBoundary { .. }
+        | E::CurveCollapsedOnSurface { .. }
         | E::UntouchedComponent { .. }
         | E::NotPositiveDefinite { .. }
         | E::Unsupported { .. }

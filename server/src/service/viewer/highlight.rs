@@ -188,6 +188,10 @@ impl Scene<'_> {
                 h.segments.push(seg(segment));
                 h.faces.push(self.input_face(*face));
             }
+            Error::CurveCollapsedOnSurface { segment, position } => {
+                h.segments.push(seg(segment));
+                h.points.extend(position.map(|x| x as f32));
+            }
             Error::UntouchedComponent { component, .. } => {
                 if let Some(s) = self.surface {
                     let he = s.halfedges();
