@@ -38,14 +38,29 @@ impl Simd {
     /// query, so this is a load and a compare per call). The environment
     /// variable `CURVENET_SIMD=baseline|avx2` (any case) caps it, so that
     /// the variants can be compared on one machine and a suspected
-    /// vector-unit problem ruled out without a rebuild; any other value (or
-    /// none) takes the best the CPU has. It is read once per process.
+    /// vector-unit problem ruled out without a rebuild; `avx512`, any other
+    /// value or none takes the best the CPU has (the command line warns
+    /// about values it does not know: [`Self::env_problem`]). It is read once per process.
     pub fn detect() -> Self {
         use std::sync::OnceLock;
         static CHOSEN: OnceLock<Simd> = OnceLock::new();
         *CHOSEN.get_or_init(|| {
             let cap = std::env::var("CURVENET_SIMD").unwrap_or_default();
             Self::best(&cap)
+        })
+    }
+
+    /// What is wrong with `CURVENET_SIMD`, if it is set to a value
+    /// [`Self::detect`] does not know (it then takes the best the CPU has):
+    /// a message naming the value, for the command line to warn with.
+    pub fn env_problem() -> Option<String> {
+        let cap = std::env::var("CURVENET_SIMD").ok()?;
+        let known = cap.is_empty() || ["baseline", "avx2", "avx512"].iter().any(|k| cap.eq_ignore_ascii_case(k));
+        (!known).then(|| {
+            format!(
+                "CURVENET_SIMD={cap:?} is not \"baseline\", \"avx2\" or \"avx512\"; the sweeps use the best the CPU has ({})",
+                Self::detect().name()
+            )
         })
     }
 

@@ -50,6 +50,9 @@ fn main() -> ExitCode {
     if !serves {
         exit_quietly_on_closed_pipe();
     }
+    if let Some(problem) = curvenet_core::simd::Simd::env_problem() {
+        eprintln!("curvenet: warning: {problem}");
+    }
     let result = match cli.command {
         Command::Inspect(args) => cli::inspect::run(&args),
         Command::Bake(args) => cli::bake::run(&args),

@@ -48,6 +48,29 @@ fn bad_input_exits_2_and_names_the_problem() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("/Nope"));
 }
 
+/// A misspelt `CURVENET_SIMD` (meant to rule a vector unit out) is warned
+/// about, naming the value, and the command still runs; a known value is not.
+#[test]
+fn an_unknown_curvenet_simd_value_is_warned_about() {
+    let run = |value: &str| {
+        Command::new(env!("CARGO_BIN_EXE_curvenet"))
+            .args(["inspect", "fixtures/grid/grid.usda"])
+            .env("CURVENET_SIMD", value)
+            .current_dir(repo())
+            .output()
+            .expect("runs")
+    };
+    let out = run("sse2");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("warning") && stderr.contains("CURVENET_SIMD=\"sse2\""), "{stderr}");
+    for known in ["baseline", "AVX2", "avx512"] {
+        let out = run(known);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success() && !stderr.contains("CURVENET_SIMD"), "{known}: {stderr}");
+    }
+}
+
 // ---------------------------------------------------------------------------
 // The curvenet analysis in `inspect`. Expected counts are derived by hand from
 // fixtures/README.md (see the comments), not copied from the program.
