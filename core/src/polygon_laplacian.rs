@@ -112,7 +112,7 @@ pub fn polygon_laplacian(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn lap(corners: &[DVec3]) -> Vec<f64> {
@@ -122,7 +122,7 @@ mod tests {
     }
 
     /// A deterministic pseudo-random sequence in [-1, 1) (xorshift), so tests need no RNG crate.
-    pub(crate) struct Rng(u64);
+    pub(crate) struct Rng(pub(crate) u64);
     impl Rng {
         pub fn next(&mut self) -> f64 {
             self.0 ^= self.0 << 13;

@@ -655,13 +655,8 @@ mod tests {
     /// bit for bit.
     #[test]
     fn chunked_walk_equals_the_reference_bit_for_bit() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 4.0 - 2.0
-        };
+        let mut rng = crate::polygon_laplacian::tests::Rng(0x9E37_79B9_7F4A_7C15);
+        let mut next = || 2.0 * rng.next();
         let mut len = [0.0; STACK_PIECES];
         let mut portable = vec![0.0; STACK_PIECES + 2];
         for case in 0..60 {
