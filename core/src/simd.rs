@@ -7,7 +7,9 @@
 //! what the CPU reports. The variants execute the same IEEE operations in
 //! the same order — no fused multiply-add, which Rust never contracts on
 //! its own — so a frame's result is bit for bit the same whichever variant
-//! ran: a shot baked on a mixed farm gives the same bytes on every machine.
+//! ran. (The frame also calls the C library's `sin`, `cos` and `atan2`;
+//! glibc picks FMA builds of those at run time, and whether they round
+//! alike on every CPU is not verified here.)
 //! FMA would be faster still in the widest batches (measured about 1.3× at
 //! 72 columns) but would make the bytes depend on the machine.
 //!
