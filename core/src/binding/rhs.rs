@@ -264,7 +264,7 @@ impl GradientRhs {
     /// unknowns' f_v, then the constraint rows' f_c), source by source.
     #[inline]
     pub(crate) fn add_to(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
-        for (s, f) in grad9.iter().enumerate().take(self.start.len() - 1) {
+        for (s, f) in grad9.iter().enumerate().take(self.start.len().saturating_sub(1)) {
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let w = &self.weight[e];
                 let out = &mut rhs3[self.dst[e] as usize];
