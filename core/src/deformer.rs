@@ -367,10 +367,7 @@ impl Deformer {
         let mut s = self.take();
         let result = (|| {
             self.stage(frame, &mut s, out.len())?;
-            self.binding.solve_harmonic(&mut s.ws);
-            self.binding.deform_poisson_rhs(&mut s.ws);
-            self.binding.solve_poisson(&mut s.ws);
-            self.finish(frame, &mut s, out, gradients)
+            self.solve_staged(frame, &mut s, out, gradients)
         })();
         self.give(s);
         result
@@ -435,11 +432,10 @@ impl Deformer {
         if k == 1 {
             // A group of one solves in its own workspace, as `frame` does:
             // the interleaved block would only be a copy of it.
-            let (s, out) = (&mut scratches[0], &mut outs[0]);
-            self.binding.solve_harmonic(&mut s.ws);
-            self.binding.deform_poisson_rhs(&mut s.ws);
-            self.binding.solve_poisson(&mut s.ws);
-            return self.finish(&frames[0], s, out.points, out.gradients.as_deref_mut()).map_err(|e| (0, e));
+            let out = &mut outs[0];
+            return self
+                .solve_staged(&frames[0], &mut scratches[0], out.points, out.gradients.as_deref_mut())
+                .map_err(|e| (0, e));
         }
         // The harmonic solve: 9 columns per frame.
         let width = 9 * k;
@@ -465,6 +461,21 @@ impl Deformer {
             self.finish(frame, s, out.points, out.gradients.as_deref_mut()).map_err(|e| (i, e))?;
         }
         Ok(())
+    }
+
+    /// A staged frame ([`Self::stage`]) solved in its own workspace: both
+    /// solves, the Poisson right-hand side between them, and the output.
+    fn solve_staged(
+        &self,
+        frame: &Frame<'_>,
+        s: &mut Scratch,
+        out: &mut [[f64; 3]],
+        gradients: Option<&mut [[f64; 9]]>,
+    ) -> Result<()> {
+        self.binding.solve_harmonic(&mut s.ws);
+        self.binding.deform_poisson_rhs(&mut s.ws);
+        self.binding.solve_poisson(&mut s.ws);
+        self.finish(frame, s, out, gradients)
     }
 
     /// A frame's work before its solves, into `s`: checks, blend shapes in
