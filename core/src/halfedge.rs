@@ -64,20 +64,15 @@ impl Halfedges {
             (a.min(b), a.max(b))
         };
         let n_vertices = mesh.n_vertices();
-        let mut bucket = vec![0u32; n_vertices + 1];
-        for h in 0..n_he {
-            bucket[key(h).0 as usize + 1] += 1;
-        }
-        for v in 0..n_vertices {
-            bucket[v + 1] += bucket[v];
-        }
-        let mut keyed = vec![(0u32, 0u32, 0u32); n_he];
-        let mut fill = bucket.clone();
-        for h in 0..n_he {
-            let (a, b) = key(h);
-            keyed[fill[a as usize] as usize] = (a, b, h as u32);
-            fill[a as usize] += 1;
-        }
+        let lower: Vec<u32> = (0..n_he).map(|h| key(h).0).collect();
+        let (bucket, order) = crate::sparse::group_by_key(n_vertices, &lower);
+        let mut keyed: Vec<(u32, u32, u32)> = order
+            .iter()
+            .map(|&h| {
+                let (a, b) = key(h as usize);
+                (a, b, h)
+            })
+            .collect();
         for v in 0..n_vertices {
             keyed[bucket[v] as usize..bucket[v + 1] as usize].sort_unstable();
         }

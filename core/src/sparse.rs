@@ -84,6 +84,28 @@ impl Csr {
     }
 }
 
+/// Groups items `i = 0..keys.len()` by their key `keys[i] < n_keys` (a
+/// counting sort): returns `start` (`n_keys + 1` offsets) and `order`, the
+/// items of key `k` at `order[start[k]..start[k + 1]]`, in increasing `i`.
+/// Linear time; the adjacency lists of the binding (outgoing halfedges,
+/// twins, the transposed right-hand-side operator) are built with it.
+pub(crate) fn group_by_key(n_keys: usize, keys: &[u32]) -> (Vec<u32>, Vec<u32>) {
+    let mut start = vec![0u32; n_keys + 1];
+    for &k in keys {
+        start[k as usize + 1] += 1;
+    }
+    for k in 0..n_keys {
+        start[k + 1] += start[k];
+    }
+    let mut fill = start.clone();
+    let mut order = vec![0u32; keys.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        order[fill[k as usize] as usize] = i as u32;
+        fill[k as usize] += 1;
+    }
+    (start, order)
+}
+
 impl Csr {
     /// Heap bytes held (see [`crate::heap`]).
     pub fn heap_bytes(&self) -> usize {

@@ -1166,19 +1166,9 @@ impl CutMesh {
 /// (it cannot on a validated manifold), the later entry is the edge's, as a
 /// map's insert would keep it, and the earlier one gets no twin.
 fn twin_boundary(boundary: &[(u32, u32, u32)], n_vertices: usize, twin: &mut [u32]) {
-    let mut start = vec![0u32; n_vertices + 1];
-    for &(a, _, _) in boundary {
-        start[a as usize + 1] += 1;
-    }
-    for v in 0..n_vertices {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut by_tail = vec![(0u32, 0u32); boundary.len()];
-    for &(a, b, g) in boundary {
-        by_tail[fill[a as usize] as usize] = (b, g);
-        fill[a as usize] += 1;
-    }
+    let tails: Vec<u32> = boundary.iter().map(|e| e.0).collect();
+    let (start, order) = crate::sparse::group_by_key(n_vertices, &tails);
+    let by_tail: Vec<(u32, u32)> = order.iter().map(|&i| (boundary[i as usize].1, boundary[i as usize].2)).collect();
     let bucket = |v: u32| &by_tail[start[v as usize] as usize..start[v as usize + 1] as usize];
     // The last entry of the directed edge a -> b, if any.
     let last = |a: u32, b: u32| bucket(a).iter().rev().find(|e| e.0 == b).map(|e| e.1);

@@ -238,26 +238,16 @@ impl GradientRhs {
             }
             out_start[u + 1] = m as u32;
         }
-        // Transposed: per source, the unknowns it feeds (in unknown order).
-        let mut by_src = vec![0u32; n_src + 1];
-        for &s in &src[..m] {
-            by_src[s as usize + 1] += 1;
-        }
-        for s in 0..n_src {
-            by_src[s + 1] += by_src[s];
-        }
-        let mut fill = by_src.clone();
-        let mut dst = vec![0u32; m];
-        let mut tweight = vec![[0.0; 3]; m];
+        // Transposed: per source, the unknowns it feeds (in unknown order,
+        // as the entries are).
+        let mut unknown_of = vec![0u32; m];
         for u in 0..n_unknowns {
-            for e in out_start[u] as usize..out_start[u + 1] as usize {
-                let k = fill[src[e] as usize] as usize;
-                dst[k] = u as u32;
-                tweight[k] = weight[e];
-                fill[src[e] as usize] += 1;
-            }
+            unknown_of[out_start[u] as usize..out_start[u + 1] as usize].fill(u as u32);
         }
-        Ok(Self { start: by_src, dst, weight: tweight })
+        let (by_src, order) = crate::sparse::group_by_key(n_src, &src[..m]);
+        let dst = order.iter().map(|&e| unknown_of[e as usize]).collect();
+        let weight = order.iter().map(|&e| weight[e as usize]).collect();
+        Ok(Self { start: by_src, dst, weight })
     }
 
     /// `rhs3[u] += Σ_s F_s w_us` (`F_s` row-major 3×3, `grad9[s]`: the

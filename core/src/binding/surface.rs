@@ -136,20 +136,8 @@ impl Surface {
             triangles.iter().map(|t| (t.map(vertex_of), halfedges.face(t[0]))).collect();
         let bvh = ClosestPointBvh::from_triangles(points, &tri_vertices)?;
         let mean_edge_length = mesh.mean_edge_length(points);
-        let mut vertex_out_start = vec![0u32; mesh.n_vertices() + 1];
-        for h in 0..halfedges.n_halfedges() as u32 {
-            vertex_out_start[halfedges.tail(h) as usize + 1] += 1;
-        }
-        for v in 0..mesh.n_vertices() {
-            vertex_out_start[v + 1] += vertex_out_start[v];
-        }
-        let mut fill = vertex_out_start.clone();
-        let mut vertex_out = vec![0u32; halfedges.n_halfedges()];
-        for h in 0..halfedges.n_halfedges() as u32 {
-            let v = halfedges.tail(h) as usize;
-            vertex_out[fill[v] as usize] = h;
-            fill[v] += 1;
-        }
+        let tails: Vec<u32> = (0..halfedges.n_halfedges() as u32).map(|h| halfedges.tail(h)).collect();
+        let (vertex_out_start, vertex_out) = crate::sparse::group_by_key(mesh.n_vertices(), &tails);
         Ok(Self {
             mesh,
             input_face,
