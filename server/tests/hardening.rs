@@ -211,6 +211,12 @@ fn hand() -> &'static BindingRequest {
     HAND.get_or_init(|| request_from_stage("fixtures/hand/hand_1k4.usda"))
 }
 
+/// A sample density that makes the 1.4k hand's binding slow (1.4-2.4 s on a
+/// 2-core machine, about 0.7 GB) for the tests of limits, cancellation and
+/// shutdown mid-binding. If the binding gets much faster, raise it: memory
+/// grows with its square (the cut faces' corner counts).
+const HEAVY_DENSITY: f64 = 400.0;
+
 fn hand_with_density(d: f64) -> BindingRequest {
     let mut r = hand().clone();
     r.curvenets[0].sample_density = d;
@@ -427,28 +433,36 @@ fn expensive_bindings_are_refused_timed_out_or_cancelled_when_their_client_leave
     assert_eq!(server.metric("curvenet_bindings_computed_total"), 0.0);
     drop(server);
 
-    // Density 400 on the 1.4k hand binds for over ten seconds on this machine:
-    // with a 1 s limit it is stopped at 1 s.
+    // Density 400 on the 1.4k hand binds in 1.4-2.4 s on a 2-core machine (it
+    // took over ten before the polygon Laplacian's stabilisation was expanded):
+    // with a 0.25 s limit it is stopped at 0.25 s. The limits here are kept
+    // well under the binding's time so that a faster machine or binding still
+    // exercises them; the assertions name `HEAVY_DENSITY` if it ever does not.
     let server = Server::start(&[
         "--max-sample-density",
         "1000",
         "--max-segments-per-vertex",
         "100",
         "--max-binding-seconds",
-        "1",
+        "0.25",
     ]);
     let t = Instant::now();
-    let a = post_json(server.addr, "/v1/bindings", &hand_with_density(400.0));
+    let a = post_json(server.addr, "/v1/bindings", &hand_with_density(HEAVY_DENSITY));
     let took = t.elapsed();
-    assert_eq!((a.status, a.code().as_str()), (422, "limit_exceeded"), "{}", a.text());
+    assert_eq!(
+        (a.status, a.code().as_str()),
+        (422, "limit_exceeded"),
+        "{} (a 200 means the binding beat the limit: raise HEAVY_DENSITY)",
+        a.text()
+    );
     assert!(a.text().contains("--max-binding-seconds"), "{}", a.text());
-    println!("time limit 1 s: answered after {took:?}");
-    assert!(took < Duration::from_secs(4), "{took:?}");
+    println!("time limit 0.25 s: answered after {took:?}");
+    assert!(took < Duration::from_secs(2), "{took:?}");
     drop(server);
 
     // A client that disconnects mid-binding: the binding is cancelled.
     let server = Server::start(&["--max-sample-density", "1000", "--max-segments-per-vertex", "100"]);
-    let body = serde_json::to_vec(&hand_with_density(400.0)).unwrap();
+    let body = serde_json::to_vec(&hand_with_density(HEAVY_DENSITY)).unwrap();
     let mut s = TcpStream::connect(server.addr).unwrap();
     write!(
         s,
@@ -490,10 +504,10 @@ fn expensive_bindings_are_refused_timed_out_or_cancelled_when_their_client_leave
 fn sigterm_mid_binding_exits_within_the_drain_timeout() {
     let _serial = one_at_a_time();
     let mut server =
-        Server::start(&["--max-sample-density", "1000", "--max-segments-per-vertex", "100", "--drain-timeout", "2"]);
+        Server::start(&["--max-sample-density", "1000", "--max-segments-per-vertex", "100", "--drain-timeout", "0.25"]);
     let addr = server.addr;
     let client = std::thread::spawn(move || {
-        let body = serde_json::to_vec(&hand_with_density(400.0)).unwrap();
+        let body = serde_json::to_vec(&hand_with_density(HEAVY_DENSITY)).unwrap();
         let mut s = TcpStream::connect(addr).unwrap();
         s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
         write!(s, "POST /v1/bindings HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n", body.len()).unwrap();
@@ -509,9 +523,14 @@ fn sigterm_mid_binding_exits_within_the_drain_timeout() {
     server.terminate();
     let status = server.wait(Duration::from_secs(10)).expect("the server exits");
     let took = t.elapsed();
-    println!("SIGTERM mid-binding, drain timeout 2 s: exited after {took:?} with {status}");
-    assert!(took < Duration::from_secs(3), "exited after {took:?}");
-    assert_eq!(status.code(), Some(1), "cut short: {status}\n{}", server.log());
+    println!("SIGTERM mid-binding, drain timeout 0.25 s: exited after {took:?} with {status}");
+    assert!(took < Duration::from_secs(1), "exited after {took:?}");
+    assert_eq!(
+        status.code(),
+        Some(1),
+        "cut short: {status} (exit 0: the binding finished within the drain timeout; raise HEAVY_DENSITY)\n{}",
+        server.log()
+    );
     assert!(server.log().contains("drain timeout reached"), "{}", server.log());
     // The client got no 200.
     assert_ne!(client.join().unwrap(), Some(200));
