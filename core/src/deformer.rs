@@ -45,7 +45,7 @@ use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
 use crate::skinning::{Mat4, Skin, SkinningMethod, SplineSkinning};
-use crate::solve::{FrameInput, Workspace};
+use crate::solve::{FrameInput, HasWorkspace, Lanes, Workspace};
 
 /// A mesh in its projection pose (the pose the curvenets were drawn on):
 /// USD / OBJ face layout, counter-clockwise faces seen from outside.
@@ -227,8 +227,14 @@ struct Scratch {
 struct Batch {
     /// One per frame of the largest group solved so far.
     scratches: Vec<Scratch>,
-    /// The stacked right-hand sides: unknowns × (9 × frames), reused for the 3-column solve.
-    rows: Vec<f64>,
+    /// The group's right-hand sides and solutions, lane-interleaved.
+    lanes: Lanes,
+}
+
+impl HasWorkspace for Scratch {
+    fn workspace(&mut self) -> &mut Workspace {
+        &mut self.ws
+    }
 }
 
 /// Where [`Deformer::frames`] writes one frame: its points and, when
@@ -424,7 +430,6 @@ impl Deformer {
         while batch.scratches.len() < k {
             batch.scratches.push(self.take());
         }
-        let u = self.binding.n_unknowns();
         let scratches = &mut batch.scratches[..k];
         for (i, ((frame, out), s)) in frames.iter().zip(outs.iter()).zip(scratches.iter_mut()).enumerate() {
             self.stage(frame, s, out.points.len()).map_err(|e| (i, e))?;
@@ -437,27 +442,24 @@ impl Deformer {
                 .solve_staged(&frames[0], &mut scratches[0], out.points, out.gradients.as_deref_mut())
                 .map_err(|e| (0, e));
         }
-        // The harmonic solve: 9 columns per frame.
-        let width = 9 * k;
-        batch.rows.resize(u * width, 0.0);
-        let rows = &mut batch.rows[..u * width];
-        for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.gather_block(s.ws.harmonic_rows(), rows, width, i);
+        // Every frame's constraint rows into its lane; the harmonic
+        // right-hand sides and solve, 9 columns per frame; then the Poisson
+        // ones, 3 per frame. f_v comes back to the workspaces of the frames
+        // that output gradients (or need them for blend shapes after the
+        // solve) or bring their own rest pose, x_v to every one.
+        let mut wants_fv = 0u32;
+        for (i, (frame, out)) in frames.iter().zip(outs.iter()).enumerate() {
+            let after = self.active_weights(frame).is_some() && frame.blend_shape_mode == BlendShapeMode::After;
+            if out.gradients.is_some() || after || frame.rest.is_some() || scratches[i].ws.rest_mode() {
+                wants_fv |= 1 << i;
+            }
         }
-        self.binding.solve_permuted(width, rows);
-        for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.scatter_block(rows, width, i, s.ws.harmonic_rows());
-            self.binding.deform_poisson_rhs(&mut s.ws);
-        }
-        // The Poisson solve: 3 columns per frame.
-        let width = 3 * k;
-        let rows = &mut batch.rows[..u * width];
-        for (i, s) in scratches.iter_mut().enumerate() {
-            self.binding.gather_block(s.ws.poisson_rows(), rows, width, i);
-        }
-        self.binding.solve_permuted(width, rows);
+        let lanes = &mut batch.lanes;
+        self.binding.lanes_start(lanes, k);
+        self.binding.lanes_load(lanes, scratches);
+        self.binding.lanes_solve_harmonic(lanes, scratches, wants_fv);
+        self.binding.lanes_solve_poisson(lanes, scratches);
         for (i, ((frame, out), s)) in frames.iter().zip(outs.iter_mut()).zip(scratches.iter_mut()).enumerate() {
-            self.binding.scatter_block(rows, width, i, s.ws.poisson_rows());
             self.finish(frame, s, out.points, out.gradients.as_deref_mut()).map_err(|e| (i, e))?;
         }
         Ok(())
@@ -472,6 +474,7 @@ impl Deformer {
         out: &mut [[f64; 3]],
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
+        self.binding.harmonic_rhs(&mut s.ws);
         self.binding.solve_harmonic(&mut s.ws);
         self.binding.deform_poisson_rhs(&mut s.ws);
         self.binding.solve_poisson(&mut s.ws);
@@ -595,7 +598,7 @@ impl Deformer {
         } else {
             frame.posed
         };
-        self.binding.deform_harmonic_rhs(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
+        self.binding.deform_constraints(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
     }
 
     /// A frame's work after its solves: the output points (and gradients),

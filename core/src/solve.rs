@@ -132,10 +132,26 @@ impl Binding {
         self.deform_output(input.rest, ws, out, gradients)
     }
 
-    /// A frame up to its first solve: checks, the rest pose, the curvenet
-    /// deformation, the constraint rows and the harmonic right-hand side
-    /// (in `ws.grad9[..n_unknowns]`). `n_out`: the length of the caller's output.
+    /// A frame up to its first solve: [`Self::deform_constraints`], then the
+    /// harmonic right-hand side (in `ws.grad9[..n_unknowns]`).
     pub(crate) fn deform_harmonic_rhs(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
+        self.deform_constraints(input, ws, n_out)?;
+        self.harmonic_rhs(ws);
+        Ok(())
+    }
+
+    /// The harmonic right-hand side for f_v (line 6, Eq. 4) from the
+    /// constraint rows' f_c, into `ws.grad9[..n_unknowns]`.
+    pub(crate) fn harmonic_rhs(&self, ws: &mut Workspace) {
+        let (rhs9, fc) = ws.grad9.split_at_mut(ws.n_unknowns);
+        rhs9.fill([0.0; 9]);
+        self.b.mul_add(fc, rhs9, -1.0);
+    }
+
+    /// A frame's constraint rows: checks, the rest pose, the curvenet
+    /// deformation, then f_c (in `ws.grad9[n_unknowns..]`) and x_c (in
+    /// `ws.xc`). `n_out`: the length of the caller's output.
+    pub(crate) fn deform_constraints(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch {
@@ -232,10 +248,6 @@ impl Binding {
         if let Some((r, _)) = ws.xc.iter().enumerate().find(|(_, p)| !p.iter().all(|x| x.is_finite())) {
             return Err(Error::NonFinite { what: "constraint position", index: r, value: ws.xc[r] });
         }
-        // The harmonic right-hand side for f_v (line 6, Eq. 4).
-        let (rhs9, fc) = ws.grad9.split_at_mut(n_u);
-        rhs9.fill([0.0; 9]);
-        self.b.mul_add(fc, rhs9, -1.0);
         Ok(())
     }
 
@@ -449,38 +461,149 @@ impl Workspace {
     }
 }
 
-/// The multi-frame solve's access to a frame's right-hand sides: the
-/// harmonic system's 9 columns and the Poisson system's 3, per unknown.
+/// The right-hand sides and solutions of a group of frames solved together
+/// ([`crate::Deformer::frames`]), so that one sweep of each triangular
+/// solve, one pass over `B` and one over the gradient operator serve every
+/// frame of the group. Rows are in the factor's order (the binding numbers
+/// its unknowns so), and each row holds its components lane-interleaved:
+/// component `c` of frame `i` at `c · lanes + i`, so that the operators add
+/// one weight into every frame's lane with one vector operation. The
+/// triangular solves treat every column alike, so the order of the columns
+/// within a row is theirs to choose. Frames come in and go out through
+/// their workspaces, all frames in one pass over the rows.
+#[derive(Debug, Default)]
+pub(crate) struct Lanes {
+    lanes: usize,
+    n_unknowns: usize,
+    /// 9 per frame: the unknowns' rows (the harmonic right-hand side, then
+    /// f_v), then the constraint rows' f_c, as a workspace's `grad9`.
+    grad: Vec<f64>,
+    /// 3 per frame: the constraint rows' x_c.
+    xc: Vec<f64>,
+    /// 3 per frame: the unknowns' Poisson right-hand side, then x_v.
+    pos: Vec<f64>,
+}
+
 impl Workspace {
-    pub(crate) fn harmonic_rows(&mut self) -> &mut [[f64; 9]] {
-        &mut self.grad9[..self.n_unknowns]
-    }
-    pub(crate) fn poisson_rows(&mut self) -> &mut [[f64; 3]] {
-        &mut self.rhs3
+    /// Whether the frame staged in this workspace brought its own rest pose.
+    pub(crate) fn rest_mode(&self) -> bool {
+        self.rest_mode
     }
 }
 
+/// A frame of a group ([`Lanes`]) holds its workspace.
+pub(crate) trait HasWorkspace {
+    fn workspace(&mut self) -> &mut Workspace;
+}
+
+impl Lanes {
+    /// Copies, row by row, every masked frame's `C` values of a row into
+    /// (`into_lanes`) or out of its lane of `rows` (`C · lanes` per row);
+    /// `field` picks the workspace's rows. Row by row, every frame's value
+    /// in turn: a row's cache lines are written (or read) by all frames
+    /// while in the cache, each frame's rows stream in order.
+    fn copy<const C: usize, S: HasWorkspace>(
+        items: &mut [S],
+        rows: &mut [f64],
+        mask: u32,
+        into_lanes: bool,
+        field: impl Fn(&mut Workspace) -> &mut [[f64; C]],
+    ) {
+        let k = items.len();
+        let n = rows.len() / (C * k).max(1);
+        let mut mine: [&mut [[f64; C]]; crate::sparse::MAX_LANES] = std::array::from_fn(|_| Default::default());
+        let mut active = [0usize; crate::sparse::MAX_LANES];
+        let mut m = 0;
+        for (i, item) in items.iter_mut().enumerate() {
+            if mask & (1 << i) != 0 {
+                let rows = field(item.workspace());
+                assert!(rows.len() >= n, "a workspace's rows");
+                mine[m] = &mut rows[..n];
+                active[m] = i;
+                m += 1;
+            }
+        }
+        let (mine, active) = (&mut mine[..m], &active[..m]);
+        for (r, row) in rows.chunks_exact_mut(C * k).enumerate() {
+            for (f, &i) in mine.iter_mut().zip(active) {
+                let v = &mut f[r];
+                for c in 0..C {
+                    if into_lanes {
+                        row[c * k + i] = v[c];
+                    } else {
+                        v[c] = row[c * k + i];
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The mask of lanes `0..k`.
+fn all_lanes(k: usize) -> u32 {
+    if k >= 32 { u32::MAX } else { (1 << k) - 1 }
+}
+
 impl Binding {
-    /// Copies one frame's right-hand side `src` into columns `slot * C ..
-    /// (slot + 1) * C` of `rows`, a block of `width` interleaved columns.
-    /// The binding numbers its unknowns in the factor's order
-    /// ([`crate::cholesky::Cholesky::into_factor_order`]), so row `k` of
-    /// the block is unknown `k`.
-    pub(crate) fn gather_block<const C: usize>(&self, src: &[[f64; C]], rows: &mut [f64], width: usize, slot: usize) {
-        debug_assert!(self.factor.in_factor_order());
-        let c0 = slot * C;
-        for (row, s) in rows.chunks_exact_mut(width).zip(src) {
-            row[c0..c0 + C].copy_from_slice(s);
+    /// Sizes `lanes` for a group of `k` frames (allocating only when it
+    /// grows past every group before).
+    pub(crate) fn lanes_start(&self, lanes: &mut Lanes, k: usize) {
+        assert!((1..=crate::sparse::MAX_LANES).contains(&k), "1 to {} frames in a group", crate::sparse::MAX_LANES);
+        debug_assert!(self.factor.in_factor_order(), "rows of the lanes are the factor's");
+        let (u, c) = (self.n_unknowns(), self.n_constraints());
+        lanes.lanes = k;
+        lanes.n_unknowns = u;
+        lanes.grad.resize((u + c) * 9 * k, 0.0);
+        lanes.xc.resize(c * 3 * k, 0.0);
+        lanes.pos.resize(u * 3 * k, 0.0);
+    }
+
+    /// Every frame's constraint rows (f_c and x_c, from
+    /// [`Self::deform_constraints`] in its workspace) into its lane.
+    pub(crate) fn lanes_load<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) {
+        let (k, u) = (lanes.lanes, lanes.n_unknowns);
+        let all = all_lanes(k);
+        Lanes::copy::<9, S>(items, &mut lanes.grad[u * 9 * k..], all, true, |ws| &mut ws.grad9[u..]);
+        Lanes::copy::<3, S>(items, &mut lanes.xc, all, true, |ws| &mut ws.xc);
+    }
+
+    /// Every lane's harmonic right-hand side ([`Self::harmonic_rhs`]) and
+    /// solve: f_v. Then f_v out to the workspaces of the frames in `mask`
+    /// (those whose output asks for gradients, or with their own rest pose).
+    pub(crate) fn lanes_solve_harmonic<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S], mask: u32) {
+        let (k, u) = (lanes.lanes, lanes.n_unknowns);
+        let (rhs, fc) = lanes.grad.split_at_mut(u * 9 * k);
+        self.b.mul_add_lanes::<9>(fc, rhs, k, -1.0, true);
+        self.solve_permuted(9 * k, rhs);
+        if mask != 0 {
+            Lanes::copy::<9, S>(items, rhs, mask, false, |ws| &mut ws.grad9[..u]);
         }
     }
 
-    /// The inverse of [`Self::gather_block`]: columns `slot * C ..` of
-    /// `rows` back into one frame's `dst`.
-    pub(crate) fn scatter_block<const C: usize>(&self, rows: &[f64], width: usize, slot: usize, dst: &mut [[f64; C]]) {
-        let c0 = slot * C;
-        for (row, d) in rows.chunks_exact(width).zip(dst) {
-            d.copy_from_slice(&row[c0..c0 + C]);
+    /// Every lane's Poisson right-hand side as [`Self::deform_poisson_rhs`]
+    /// makes it in the projection pose, except that a frame with its own
+    /// rest pose (its `r_h` are its own; f_v already in its workspace, see
+    /// [`Self::lanes_solve_harmonic`]) makes its own in its workspace;
+    /// then the solve, and every frame's x_v out to its workspace.
+    pub(crate) fn lanes_solve_poisson<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) {
+        let k = lanes.lanes;
+        let mut own = 0u32;
+        for (i, item) in items.iter_mut().enumerate() {
+            let ws = item.workspace();
+            if ws.rest_mode {
+                self.deform_poisson_rhs(ws);
+                own |= 1 << i;
+            }
         }
+        if own != all_lanes(k) {
+            self.b.mul_add_lanes::<3>(&lanes.xc, &mut lanes.pos, k, -1.0, true);
+            self.gradient_rhs.add_to_lanes(&lanes.grad, &mut lanes.pos, k);
+        }
+        if own != 0 {
+            Lanes::copy::<3, S>(items, &mut lanes.pos, own, true, |ws| &mut ws.rhs3);
+        }
+        self.solve_permuted(3 * k, &mut lanes.pos);
+        Lanes::copy::<3, S>(items, &mut lanes.pos, all_lanes(k), false, |ws| &mut ws.rhs3);
     }
 
     /// Solves `VᵀL_hV X = B` for `width` interleaved columns in the

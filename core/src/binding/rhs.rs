@@ -254,6 +254,32 @@ impl GradientRhs {
     /// unknowns' f_v, then the constraint rows' f_c), source by source.
     #[inline]
     pub(crate) fn add_to(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
+        use crate::simd::Simd;
+        match Simd::detect() {
+            // SAFETY: `Simd::detect` found the feature on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => unsafe { self.add_to_avx512(grad9, rhs3) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => unsafe { self.add_to_avx2(grad9, rhs3) },
+            Simd::Baseline => self.add_to_body(grad9, rhs3),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn add_to_avx512(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
+        self.add_to_body(grad9, rhs3);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn add_to_avx2(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
+        self.add_to_body(grad9, rhs3);
+    }
+
+    #[inline(always)]
+    fn add_to_body(&self, grad9: &[[f64; 9]], rhs3: &mut [[f64; 3]]) {
         for (s, f) in grad9.iter().enumerate().take(self.start.len().saturating_sub(1)) {
             for e in self.start[s] as usize..self.start[s + 1] as usize {
                 let w = &self.weight[e];
@@ -265,8 +291,164 @@ impl GradientRhs {
         }
     }
 
+    /// [`Self::add_to`] for `lanes` frames at once, on lane-interleaved
+    /// rows (component `c` of frame `i` at `c · lanes + i`; `grad` 9 ·
+    /// `lanes` values per source, `rhs` 3 · `lanes` per unknown): every
+    /// entry's weight is read once for all frames and applied with one
+    /// vector operation per component. Per frame the same operations in the
+    /// same order as [`Self::add_to`], so the same bits.
+    pub(crate) fn add_to_lanes(&self, grad: &[f64], rhs: &mut [f64], lanes: usize) {
+        use crate::simd::Simd;
+        let n_src = self.start.len().saturating_sub(1);
+        assert!(lanes > 0 && grad.len() >= n_src * 9 * lanes, "9 · lanes gradients per source");
+        match Simd::detect() {
+            // SAFETY: `Simd::detect` found the feature on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => unsafe { self.add_to_lanes_avx512(grad, rhs, lanes) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => unsafe { self.add_to_lanes_avx2(grad, rhs, lanes) },
+            Simd::Baseline => self.add_to_lanes_any(grad, rhs, lanes),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn add_to_lanes_avx512(&self, grad: &[f64], rhs: &mut [f64], lanes: usize) {
+        self.add_to_lanes_any(grad, rhs, lanes);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn add_to_lanes_avx2(&self, grad: &[f64], rhs: &mut [f64], lanes: usize) {
+        self.add_to_lanes_any(grad, rhs, lanes);
+    }
+
+    /// [`Self::add_to_lanes`], compiled for the common group sizes so that
+    /// a source's gradients stay in registers over its entries.
+    #[inline(always)]
+    fn add_to_lanes_any(&self, grad: &[f64], rhs: &mut [f64], lanes: usize) {
+        match lanes {
+            2 => self.add_to_lanes_fixed::<2>(grad, rhs),
+            4 => self.add_to_lanes_fixed::<4>(grad, rhs),
+            8 => self.add_to_lanes_fixed::<8>(grad, rhs),
+            16 => self.add_to_lanes_fixed::<16>(grad, rhs),
+            _ => self.add_to_lanes_dyn(grad, rhs, lanes),
+        }
+    }
+
+    #[inline(always)]
+    fn add_to_lanes_fixed<const L: usize>(&self, grad: &[f64], rhs: &mut [f64]) {
+        let (grad, _) = grad.as_chunks::<L>();
+        let (rhs, _) = rhs.as_chunks_mut::<L>();
+        let n_src = self.start.len().saturating_sub(1);
+        for (s, f) in grad.chunks_exact(9).enumerate().take(n_src) {
+            let f: [[f64; L]; 9] = std::array::from_fn(|j| f[j]);
+            for e in self.start[s] as usize..self.start[s + 1] as usize {
+                let w = self.weight[e];
+                let d = self.dst[e] as usize;
+                for (c, o) in rhs[3 * d..3 * d + 3].iter_mut().enumerate() {
+                    let (f0, f1, f2) = (&f[3 * c], &f[3 * c + 1], &f[3 * c + 2]);
+                    for i in 0..L {
+                        o[i] += f0[i] * w[0] + f1[i] * w[1] + f2[i] * w[2];
+                    }
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn add_to_lanes_dyn(&self, grad: &[f64], rhs: &mut [f64], lanes: usize) {
+        let l = lanes;
+        for (s, f) in grad.chunks_exact(9 * l).enumerate().take(self.start.len().saturating_sub(1)) {
+            for e in self.start[s] as usize..self.start[s + 1] as usize {
+                let w = self.weight[e];
+                let d = self.dst[e] as usize;
+                let out = &mut rhs[d * 3 * l..(d + 1) * 3 * l];
+                for (c, o) in out.chunks_exact_mut(l).enumerate() {
+                    let f0 = &f[3 * c * l..(3 * c + 1) * l];
+                    let f1 = &f[(3 * c + 1) * l..(3 * c + 2) * l];
+                    let f2 = &f[(3 * c + 2) * l..(3 * c + 3) * l];
+                    for i in 0..l {
+                        o[i] += f0[i] * w[0] + f1[i] * w[1] + f2[i] * w[2];
+                    }
+                }
+            }
+        }
+    }
+
     pub(crate) fn heap_bytes(&self) -> usize {
         use crate::heap::bytes;
         bytes(&self.start) + bytes(&self.dst) + bytes(&self.weight)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::GradientRhs;
+    use crate::polygon_laplacian::tests::Rng;
+
+    /// Every lane of [`GradientRhs::add_to_lanes`] is bit for bit
+    /// [`GradientRhs::add_to`] of its own frame, for every group size and
+    /// every vector variant this CPU has (a random operator: sources with
+    /// no entries, several entries into one unknown).
+    #[test]
+    fn lanes_equal_the_one_frame_operator_bit_for_bit() {
+        let mut rng = Rng(0xD1B5_4A32_D192_ED03);
+        let (n_src, n_dst) = (41, 23);
+        let (mut start, mut dst, mut weight) = (vec![0u32], Vec::new(), Vec::new());
+        for s in 0..n_src {
+            for _ in 0..((rng.next() + 1.0) * 5.0) as usize * (s % 7 != 2) as usize {
+                dst.push(((rng.next() + 1.0) * 0.5 * n_dst as f64) as u32);
+                weight.push([rng.next(), rng.next() * 1e-3, rng.next() * 1e3]);
+            }
+            start.push(dst.len() as u32);
+        }
+        let op = GradientRhs { start, dst, weight };
+        for lanes in 1..=crate::sparse::MAX_LANES {
+            let grad: Vec<f64> = (0..n_src * 9 * lanes).map(|_| rng.next()).collect();
+            let rhs0: Vec<f64> = (0..n_dst * 3 * lanes).map(|_| rng.next()).collect();
+            let mut variants: Vec<(&str, Vec<f64>)> = Vec::new();
+            let mut rhs = rhs0.clone();
+            op.add_to_lanes(&grad, &mut rhs, lanes);
+            variants.push(("dispatched", rhs));
+            let mut rhs = rhs0.clone();
+            op.add_to_lanes_any(&grad, &mut rhs, lanes);
+            variants.push(("portable", rhs));
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    let mut rhs = rhs0.clone();
+                    // SAFETY: the feature was detected.
+                    unsafe { op.add_to_lanes_avx2(&grad, &mut rhs, lanes) };
+                    variants.push(("avx2", rhs));
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    let mut rhs = rhs0.clone();
+                    // SAFETY: the feature was detected.
+                    unsafe { op.add_to_lanes_avx512(&grad, &mut rhs, lanes) };
+                    variants.push(("avx512", rhs));
+                }
+            }
+            for i in 0..lanes {
+                let g: Vec<[f64; 9]> =
+                    (0..n_src).map(|s| std::array::from_fn(|c| grad[s * 9 * lanes + c * lanes + i])).collect();
+                let mut want: Vec<[f64; 3]> =
+                    (0..n_dst).map(|d| std::array::from_fn(|c| rhs0[d * 3 * lanes + c * lanes + i])).collect();
+                op.add_to(&g, &mut want);
+                for (name, rhs) in &variants {
+                    for (d, w) in want.iter().enumerate() {
+                        for c in 0..3 {
+                            let got = rhs[d * 3 * lanes + c * lanes + i];
+                            assert_eq!(
+                                got.to_bits(),
+                                w[c].to_bits(),
+                                "{lanes} lanes, {name}: lane {i}, unknown {d}, component {c}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }
