@@ -524,6 +524,16 @@ impl Lanes {
             }
         }
         let (mine, active) = (&mut mine[..m], &active[..m]);
+        if m == k {
+            // Every lane: rows of a fixed size for the common group sizes.
+            match k {
+                2 => return Self::copy_all::<C, 2>(rows, mine, into_lanes),
+                4 => return Self::copy_all::<C, 4>(rows, mine, into_lanes),
+                8 => return Self::copy_all::<C, 8>(rows, mine, into_lanes),
+                16 => return Self::copy_all::<C, 16>(rows, mine, into_lanes),
+                _ => {}
+            }
+        }
         for (r, row) in rows.chunks_exact_mut(C * k).enumerate() {
             for (f, &i) in mine.iter_mut().zip(active) {
                 let v = &mut f[r];
@@ -533,6 +543,25 @@ impl Lanes {
                     } else {
                         v[c] = row[c * k + i];
                     }
+                }
+            }
+        }
+    }
+}
+
+impl Lanes {
+    /// [`Self::copy`] of all `L` lanes.
+    fn copy_all<const C: usize, const L: usize>(rows: &mut [f64], mine: &mut [&mut [[f64; C]]], into_lanes: bool) {
+        let mine: &mut [&mut [[f64; C]]; L] = mine.try_into().expect("one workspace per lane");
+        let (rows, _) = rows.as_chunks_mut::<L>();
+        for (r, row) in rows.chunks_exact_mut(C).enumerate() {
+            if into_lanes {
+                for (c, lanes) in row.iter_mut().enumerate() {
+                    *lanes = std::array::from_fn(|i| mine[i][r][c]);
+                }
+            } else {
+                for (i, f) in mine.iter_mut().enumerate() {
+                    f[r] = std::array::from_fn(|c| row[c][i]);
                 }
             }
         }
