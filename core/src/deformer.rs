@@ -383,14 +383,20 @@ impl Deformer {
     /// into `outs[i]` (points and, when given, gradients), exactly as
     /// [`Self::frame`] would, in one sweep of each triangular solve for up
     /// to [`MAX_BATCH_FRAMES`] frames (more are solved in consecutive
-    /// groups of that many). Each frame's work before and after the solves
-    /// is done frame by frame into its own workspace; the harmonic
-    /// right-hand sides of all frames (9 columns each) are then stacked
-    /// side by side per row, in the factor's row order, and solved in one
-    /// sweep, as are the Poisson ones (3 columns each), so every factor
-    /// entry is read once per group rather than once per frame. The results
-    /// are bit for bit those of [`Self::frame`] (every column sees the same
-    /// operations in the same order), whatever the group size.
+    /// groups of that many). Each frame's curvenet and constraint rows are
+    /// made frame by frame in its own workspace, then copied into the
+    /// group's block ([`crate::solve`]'s `Lanes`: rows in the factor's
+    /// order, every frame's columns side by side). The harmonic right-hand
+    /// sides (9 columns per frame) are built there by one pass over `B`,
+    /// solved in one sweep, the Poisson ones (3 per frame) built by one
+    /// pass over `B` and the gradient operator and solved in one sweep, so
+    /// every entry of the factor and of those operators is read once per
+    /// group rather than once per frame; a frame with its own rest pose
+    /// builds its Poisson right-hand side in its workspace (its operator is
+    /// its own). The solutions go back to the workspaces for the output.
+    /// The results are bit for bit those of [`Self::frame`] (every frame
+    /// sees the same operations in the same order), whatever the group
+    /// size (`tests/multi_frame.rs`).
     ///
     /// Runs on the calling thread: parallelise across groups of frames.
     /// Allocates nothing once a group of at least as many frames has been
