@@ -101,6 +101,37 @@ fn same_bits(a: &[f64], b: &[f64]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
+/// Groups of `k` frames cycled from `which` (indices into `frames`) give
+/// the single frames' bits.
+fn check_groups(rel: &str, deformer: &Deformer, frames: &[Frame<'_>], single: &[Solved], which: &[usize], k: usize) {
+    let n = deformer.n_vertices();
+    let picked: Vec<usize> = which.iter().copied().cycle().take(2 * k + 1).collect();
+    let group_frames: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
+    let mut points: Vec<Vec<[f64; 3]>> = vec![vec![[f64::NAN; 3]; n]; picked.len()];
+    let mut grads: Vec<Option<Vec<[f64; 9]>>> =
+        picked.iter().map(|&i| single[i].1.as_ref().map(|_| vec![[f64::NAN; 9]; n])).collect();
+    let mut outs: Vec<FrameOut<'_>> = points
+        .iter_mut()
+        .zip(grads.iter_mut())
+        .map(|(p, g)| FrameOut { points: p, gradients: g.as_deref_mut() })
+        .collect();
+    for (group, outs) in group_frames.chunks(k).zip(outs.chunks_mut(k)) {
+        deformer.frames(group, outs).unwrap();
+    }
+    for (j, &i) in picked.iter().enumerate() {
+        assert!(
+            same_bits(points[j].as_flattened(), single[i].0.as_flattened()),
+            "{rel}: frames {which:?} in groups of {k}: frame {i} (position {j}) differs"
+        );
+        if let (Some(g), Some(sg)) = (&grads[j], &single[i].1) {
+            assert!(
+                same_bits(g.as_flattened(), sg.as_flattened()),
+                "{rel}: frames {which:?} in groups of {k}: frame {i}'s gradients differ"
+            );
+        }
+    }
+}
+
 fn check(rel: &str) {
     let (deformer, cases) = setup(rel);
     let n = deformer.n_vertices();
@@ -155,6 +186,21 @@ fn check(rel: &str) {
                 );
             }
         }
+    }
+    // Groups whose every frame brings its own rest pose (given, or sculpted
+    // by blend shapes before the solve), and groups whose frames need no
+    // gradients back at all, in every fixed-width group size and the widest.
+    let own_rest: Vec<usize> = (0..cases.len())
+        .filter(|&i| cases[i].rest.is_some() || (cases[i].weights.is_some() && cases[i].mode == BlendShapeMode::Before))
+        .collect();
+    let plain: Vec<usize> = (0..cases.len())
+        .filter(|&i| !own_rest.contains(&i) && !cases[i].gradients && cases[i].mode == BlendShapeMode::After)
+        .filter(|&i| cases[i].weights.as_ref().is_none_or(|w| w.iter().all(|&x| x == 0.0)))
+        .collect();
+    assert!(own_rest.len() >= 3 && !plain.is_empty(), "{own_rest:?} {plain:?}");
+    for k in [2, 4, 8, 16, 32] {
+        check_groups(rel, &deformer, &frames, &single, &own_rest, k);
+        check_groups(rel, &deformer, &frames, &single, &plain, k);
     }
 }
 

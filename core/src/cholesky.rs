@@ -691,6 +691,16 @@ mod tests {
             }
         }
         assert!(cp[201..].windows(2).all(|w| w[0] == w[1]), "columns from 200 on are empty");
+        // Ours sums each entry's duplicates left to right in the order given.
+        let mut in_order = std::collections::HashMap::new();
+        for &(r, c, v) in &a.entries {
+            in_order.entry((r, c)).and_modify(|s: &mut f64| *s += v).or_insert(v);
+        }
+        for c in 0..n {
+            for p in cp[c] as usize..cp[c + 1] as usize {
+                assert_eq!(ours.val()[p].to_bits(), in_order[&(ri[p], c as u32)].to_bits(), "({}, {c})", ri[p]);
+            }
+        }
     }
 
     fn multiply<const K: usize>(a: &SymmetricTriplets, x: &[[f64; K]]) -> Vec<[f64; K]> {

@@ -256,9 +256,13 @@ pub struct BatchError {
 
 /// The most frames [`Deformer::frames`] solves in one sweep; more are
 /// solved in consecutive groups of this many (the widest group
-/// `curvenet bench` measures; the stacked columns hold unknowns × 9 × K
-/// values, 2.3 KB per unknown at 32).
+/// `curvenet bench` measures). A group's block holds 12 values per frame
+/// per unknown and per constraint row (9 gradient columns, 3 position
+/// columns): 3.1 KB per unknown and per constraint row at 32, about 290 MB
+/// on the 94k hand, kept for reuse by each thread solving groups.
 pub const MAX_BATCH_FRAMES: usize = 32;
+// A group's frames are lanes of `Lanes`, masked by `u32` bits.
+const _: () = assert!(MAX_BATCH_FRAMES <= crate::sparse::MAX_LANES && crate::sparse::MAX_LANES <= 32);
 
 /// The group size callers use when they have no reason to choose another
 /// (`curvenet bake --batch-frames`, the service's batches): the K with the
@@ -451,12 +455,11 @@ impl Deformer {
         // Every frame's constraint rows into its lane; the harmonic
         // right-hand sides and solve, 9 columns per frame; then the Poisson
         // ones, 3 per frame. f_v comes back to the workspaces of the frames
-        // that output gradients (or need them for blend shapes after the
-        // solve) or bring their own rest pose, x_v to every one.
+        // whose output needs it (gradients, or blend shapes after the solve;
+        // the lanes add the frames with their own rest pose), x_v to every one.
         let mut wants_fv = 0u32;
         for (i, (frame, out)) in frames.iter().zip(outs.iter()).enumerate() {
-            let after = self.active_weights(frame).is_some() && frame.blend_shape_mode == BlendShapeMode::After;
-            if out.gradients.is_some() || after || frame.rest.is_some() || scratches[i].ws.rest_mode() {
+            if out.gradients.is_some() || self.after_weights(frame).is_some() {
                 wants_fv |= 1 << i;
             }
         }
@@ -489,7 +492,8 @@ impl Deformer {
 
     /// A frame's work before its solves, into `s`: checks, blend shapes in
     /// the `before` mode, the rig's skinning, then the binding's curvenet
-    /// deformation, constraint rows and harmonic right-hand side. `n_out`:
+    /// deformation and constraint rows (the harmonic right-hand side is
+    /// built by [`Self::solve_staged`], or in a group's block). `n_out`:
     /// the length of the caller's output points.
     fn stage(&self, frame: &Frame<'_>, s: &mut Scratch, n_out: usize) -> Result<()> {
         let n = self.binding.n_vertices();
@@ -627,8 +631,7 @@ impl Deformer {
         } else {
             frame.rest
         };
-        let after = self.active_weights(frame).filter(|_| frame.blend_shape_mode == BlendShapeMode::After);
-        match (after, gradients) {
+        match (self.after_weights(frame), gradients) {
             (Some(w), Some(g)) => {
                 self.binding.deform_output(rest, ws, out, Some(&mut *g))?;
                 self.shapes.add_deformed(w, g, out)
@@ -640,6 +643,12 @@ impl Deformer {
             }
             (None, g) => self.binding.deform_output(rest, ws, out, g),
         }
+    }
+
+    /// The frame's blend-shape weights when they do anything and apply after
+    /// the solve (mapped by the deformation gradients).
+    fn after_weights<'f>(&self, frame: &Frame<'f>) -> Option<&'f [f64]> {
+        self.active_weights(frame).filter(|_| frame.blend_shape_mode == BlendShapeMode::After)
     }
 
     /// The frame's blend-shape weights when they do anything (some shape, a nonzero weight).

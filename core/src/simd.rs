@@ -2,7 +2,9 @@
 //!
 //! The release binary is built for the x86-64 baseline (SSE2), so that it
 //! runs on every farm machine; the frame's hot loops (the triangular sweeps
-//! of [`crate::cholesky`], the piece lengths of the curvenet sampling) are compiled a second and third time with
+//! of [`crate::cholesky`], the piece lengths of the curvenet sampling, the
+//! gradient operator of the Poisson right-hand side and, for groups of
+//! frames, `Csr::mul_add_lanes`) are compiled a second and third time with
 //! `#[target_feature]` for AVX2 and AVX-512 and picked once per call from
 //! what the CPU reports. The variants execute the same IEEE operations in
 //! the same order — no fused multiply-add, which Rust never contracts on

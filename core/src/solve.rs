@@ -43,8 +43,9 @@ pub struct Workspace {
     slot_f: Vec<Mat3>,
     /// The 9-column gradients, one array so that a gather reads either
     /// kind without a branch: rows `..n_unknowns` are the harmonic system's
-    /// right-hand side, then its solution f_v; rows `n_unknowns..` are the
-    /// constraint rows' f_c.
+    /// right-hand side, then its solution f_v (in a group, f_v only when
+    /// the frame needs it, see [`Binding::lanes_solve_harmonic`]); rows
+    /// `n_unknowns..` are the constraint rows' f_c.
     grad9: Vec<[f64; 9]>,
     n_unknowns: usize,
     xc: Vec<[f64; 3]>,
@@ -484,13 +485,6 @@ pub(crate) struct Lanes {
     pos: Vec<f64>,
 }
 
-impl Workspace {
-    /// Whether the frame staged in this workspace brought its own rest pose.
-    pub(crate) fn rest_mode(&self) -> bool {
-        self.rest_mode
-    }
-}
-
 /// A frame of a group ([`Lanes`]) holds its workspace.
 pub(crate) trait HasWorkspace {
     fn workspace(&mut self) -> &mut Workspace;
@@ -598,12 +592,21 @@ impl Binding {
 
     /// Every lane's harmonic right-hand side ([`Self::harmonic_rhs`]) and
     /// solve: f_v. Then f_v out to the workspaces of the frames in `mask`
-    /// (those whose output asks for gradients, or with their own rest pose).
+    /// (those whose output needs it) and of every frame with its own rest
+    /// pose ([`Self::lanes_solve_poisson`] makes its Poisson right-hand
+    /// side from it); the other workspaces' rows `..n_unknowns` of `grad9`
+    /// are left as they were.
     pub(crate) fn lanes_solve_harmonic<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S], mask: u32) {
         let (k, u) = (lanes.lanes, lanes.n_unknowns);
         let (rhs, fc) = lanes.grad.split_at_mut(u * 9 * k);
         self.b.mul_add_lanes::<9>(fc, rhs, k, -1.0, true);
         self.solve_permuted(9 * k, rhs);
+        let mut mask = mask;
+        for (i, item) in items.iter_mut().enumerate() {
+            if item.workspace().rest_mode {
+                mask |= 1 << i;
+            }
+        }
         if mask != 0 {
             Lanes::copy::<9, S>(items, rhs, mask, false, |ws| &mut ws.grad9[..u]);
         }

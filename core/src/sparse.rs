@@ -102,11 +102,11 @@ impl Csr {
     /// the frame).
     ///
     /// # Panics
-    /// If `lanes` is 0 or above [`MAX_LANES`], `C` above 9, or `x`/`y` are
+    /// If `lanes` or `C` is 0, `lanes` above [`MAX_LANES`], `C` above 9, or `x`/`y` are
     /// not `ncols`/`nrows` rows of `C · lanes`.
     pub fn mul_add_lanes<const C: usize>(&self, x: &[f64], y: &mut [f64], lanes: usize, alpha: f64, set: bool) {
         assert!((1..=MAX_LANES).contains(&lanes), "1 to {MAX_LANES} lanes, not {lanes}");
-        assert!(C <= 9, "at most 9 components per lane");
+        assert!((1..=9).contains(&C), "1 to 9 components per lane");
         let w = C * lanes;
         assert_eq!(x.len(), self.ncols * w, "x: ncols rows of C · lanes");
         assert_eq!(y.len(), self.nrows * w, "y: nrows rows of C · lanes");
