@@ -102,10 +102,14 @@ fn same_bits(a: &[f64], b: &[f64]) -> bool {
 }
 
 /// Groups of `k` frames cycled from `which` (indices into `frames`) give
-/// the single frames' bits.
+/// the single frames' bits, bit for bit: a group does every frame's
+/// operations in the same order (the bake's bytes must not depend on the
+/// group size). Every frame of `which` is solved, in at least two full
+/// groups and a shorter last one.
 fn check_groups(rel: &str, deformer: &Deformer, frames: &[Frame<'_>], single: &[Solved], which: &[usize], k: usize) {
     let n = deformer.n_vertices();
-    let picked: Vec<usize> = which.iter().copied().cycle().take(2 * k + 1).collect();
+    let count = which.len().max(2 * k + 1);
+    let picked: Vec<usize> = which.iter().copied().cycle().take(count).collect();
     let group_frames: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
     let mut points: Vec<Vec<[f64; 3]>> = vec![vec![[f64::NAN; 3]; n]; picked.len()];
     let mut grads: Vec<Option<Vec<[f64; 9]>>> =
@@ -119,14 +123,16 @@ fn check_groups(rel: &str, deformer: &Deformer, frames: &[Frame<'_>], single: &[
         deformer.frames(group, outs).unwrap();
     }
     for (j, &i) in picked.iter().enumerate() {
+        let e = relative(points[j].as_flattened(), single[i].0.as_flattened());
         assert!(
             same_bits(points[j].as_flattened(), single[i].0.as_flattened()),
-            "{rel}: frames {which:?} in groups of {k}: frame {i} (position {j}) differs"
+            "{rel}: frames {which:?} in groups of {k}: frame {i} (position {j}): points differ by {e:e} (relative)"
         );
         if let (Some(g), Some(sg)) = (&grads[j], &single[i].1) {
+            let e = relative(g.as_flattened(), sg.as_flattened());
             assert!(
                 same_bits(g.as_flattened(), sg.as_flattened()),
-                "{rel}: frames {which:?} in groups of {k}: frame {i}'s gradients differ"
+                "{rel}: frames {which:?} in groups of {k}: frame {i} (position {j}): gradients differ by {e:e} (relative)"
             );
         }
     }
@@ -155,37 +161,11 @@ fn check(rel: &str) {
         assert!(moved > 1e-4 || i == 7, "{rel}: frame {i} moved the mesh by only {moved:e}");
     }
     assert!(relative(single[2].0.as_flattened(), single[3].0.as_flattened()) > 1e-4);
-    // In groups of every size from 1 to all of them (group sizes 4 and 9 leave a shorter last group),
-    // and of 16 and 32 (the most a group takes) over the frames cycled twice and four times.
+    // All frames in groups of every size from 1 to all of them, and of 16 and 32 (the most a
+    // group takes), the frames cycled to two full groups and a shorter last one.
+    let all: Vec<usize> = (0..frames.len()).collect();
     for k in [1usize, 2, 3, 4, 5, 8, 9, 16, 32] {
-        let frames: Vec<Frame<'_>> = frames.iter().copied().cycle().take(frames.len() * k.div_ceil(9)).collect();
-        let mut points: Vec<Vec<[f64; 3]>> = vec![vec![[f64::NAN; 3]; n]; frames.len()];
-        let mut grads: Vec<Option<Vec<[f64; 9]>>> =
-            cases.iter().cycle().take(frames.len()).map(|c| c.gradients.then(|| vec![[f64::NAN; 9]; n])).collect();
-        let mut outs: Vec<FrameOut<'_>> = points
-            .iter_mut()
-            .zip(grads.iter_mut())
-            .map(|(p, g)| FrameOut { points: p, gradients: g.as_deref_mut() })
-            .collect();
-        for (group, outs) in frames.chunks(k).zip(outs.chunks_mut(k)) {
-            deformer.frames(group, outs).unwrap();
-        }
-        // Bit for bit: a group does every frame's operations in the same
-        // order (the bake's bytes must not depend on the group size).
-        for (i, ((p, g), (sp, sg))) in points.iter().zip(&grads).zip(single.iter().cycle()).enumerate() {
-            let e = relative(p.as_flattened(), sp.as_flattened());
-            assert!(
-                same_bits(p.as_flattened(), sp.as_flattened()),
-                "{rel}: group size {k}, frame {i}: points differ by {e:e} (relative)"
-            );
-            if let (Some(g), Some(sg)) = (g, sg) {
-                let e = relative(g.as_flattened(), sg.as_flattened());
-                assert!(
-                    same_bits(g.as_flattened(), sg.as_flattened()),
-                    "{rel}: group size {k}, frame {i}: gradients differ by {e:e} (relative)"
-                );
-            }
-        }
+        check_groups(rel, &deformer, &frames, &single, &all, k);
     }
     // Groups whose every frame brings its own rest pose (given, or sculpted
     // by blend shapes before the solve), and groups whose frames need no
