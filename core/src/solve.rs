@@ -475,7 +475,6 @@ impl Workspace {
 #[derive(Debug, Default)]
 pub(crate) struct Lanes {
     lanes: usize,
-    n_unknowns: usize,
     /// 9 per frame: the unknowns' rows (the harmonic right-hand side, then
     /// f_v), then the constraint rows' f_c, as a workspace's `grad9`.
     grad: Vec<f64>,
@@ -541,9 +540,7 @@ impl Lanes {
             }
         }
     }
-}
 
-impl Lanes {
     /// [`Self::copy`] of all `L` lanes.
     fn copy_all<const C: usize, const L: usize>(rows: &mut [f64], mine: &mut [&mut [[f64; C]]], into_lanes: bool) {
         let mine: &mut [&mut [[f64; C]]; L] = mine.try_into().expect("one workspace per lane");
@@ -567,6 +564,17 @@ fn all_lanes(k: usize) -> u32 {
     if k >= 32 { u32::MAX } else { (1 << k) - 1 }
 }
 
+/// The mask of the frames that brought their own rest pose.
+fn own_rest_lanes<S: HasWorkspace>(items: &mut [S]) -> u32 {
+    let mut mask = 0;
+    for (i, item) in items.iter_mut().enumerate() {
+        if item.workspace().rest_mode {
+            mask |= 1 << i;
+        }
+    }
+    mask
+}
+
 impl Binding {
     /// Sizes `lanes` for a group of `k` frames (allocating only when it
     /// grows past every group before).
@@ -575,7 +583,6 @@ impl Binding {
         debug_assert!(self.factor.in_factor_order(), "rows of the lanes are the factor's");
         let (u, c) = (self.n_unknowns(), self.n_constraints());
         lanes.lanes = k;
-        lanes.n_unknowns = u;
         lanes.grad.resize((u + c) * 9 * k, 0.0);
         lanes.xc.resize(c * 3 * k, 0.0);
         lanes.pos.resize(u * 3 * k, 0.0);
@@ -584,7 +591,7 @@ impl Binding {
     /// Every frame's constraint rows (f_c and x_c, from
     /// [`Self::deform_constraints`] in its workspace) into its lane.
     pub(crate) fn lanes_load<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) {
-        let (k, u) = (lanes.lanes, lanes.n_unknowns);
+        let (k, u) = (lanes.lanes, self.n_unknowns());
         let all = all_lanes(k);
         Lanes::copy::<9, S>(items, &mut lanes.grad[u * 9 * k..], all, true, |ws| &mut ws.grad9[u..]);
         Lanes::copy::<3, S>(items, &mut lanes.xc, all, true, |ws| &mut ws.xc);
@@ -597,16 +604,11 @@ impl Binding {
     /// side from it); the other workspaces' rows `..n_unknowns` of `grad9`
     /// are left as they were.
     pub(crate) fn lanes_solve_harmonic<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S], mask: u32) {
-        let (k, u) = (lanes.lanes, lanes.n_unknowns);
+        let (k, u) = (lanes.lanes, self.n_unknowns());
         let (rhs, fc) = lanes.grad.split_at_mut(u * 9 * k);
         self.b.mul_add_lanes::<9>(fc, rhs, k, -1.0, true);
         self.solve_permuted(9 * k, rhs);
-        let mut mask = mask;
-        for (i, item) in items.iter_mut().enumerate() {
-            if item.workspace().rest_mode {
-                mask |= 1 << i;
-            }
-        }
+        let mask = mask | own_rest_lanes(items);
         if mask != 0 {
             Lanes::copy::<9, S>(items, rhs, mask, false, |ws| &mut ws.grad9[..u]);
         }
@@ -619,12 +621,10 @@ impl Binding {
     /// then the solve, and every frame's x_v out to its workspace.
     pub(crate) fn lanes_solve_poisson<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) {
         let k = lanes.lanes;
-        let mut own = 0u32;
+        let own = own_rest_lanes(items);
         for (i, item) in items.iter_mut().enumerate() {
-            let ws = item.workspace();
-            if ws.rest_mode {
-                self.deform_poisson_rhs(ws);
-                own |= 1 << i;
+            if own & (1 << i) != 0 {
+                self.deform_poisson_rhs(item.workspace());
             }
         }
         if own != all_lanes(k) {
