@@ -166,64 +166,66 @@ pub fn frames_into(plan: FramePlan<'_>, samples: &[[f64; 3]], out: &mut [[Scaled
         let segs = sampling.curve_segments(c);
         let start = start.map(|(f, k)| end_frame(plan.fans, f, k, true, out)).transpose()?;
         let end = end.map(|(f, k)| end_frame(plan.fans, f, k, false, out)).transpose()?;
-        match (start, end) {
+        // Transport the normals along the curve from the intersection end,
+        // keeping the transported (not yet renormalised) normals in `out`.
+        let theta = match (start, end) {
             (Some(first), last) => {
-                // Transport forwards from the start.
                 let mut u = first.normal;
                 for s in segs.clone() {
                     if s > segs.start {
-                        for n in &mut u {
-                            *n = orthonormalize(transport(*n, tangent(out, s - 1), tangent(out, s)), tangent(out, s))
-                                .unwrap_or(*n);
-                        }
+                        transport(&mut u, tangent(out, s - 1), tangent(out, s));
                     }
                     for side in 0..2 {
                         out[s][side].normal = u[side].to_array();
                         out[s][side].scale[1] = first.width[side];
                     }
                 }
-                if let Some(last) = last {
+                last.map(|last| {
                     let t_k = tangent(out, segs.end - 1);
                     let theta = [0, 1]
                         .map(|side| u[side].dot(last.normal[side].cross(t_k)).atan2(u[side].dot(last.normal[side])));
-                    let total: f64 = segs.clone().map(|s| out[s][0].scale[0]).sum();
-                    let mut arc = 0.0;
-                    for s in segs.clone() {
-                        let alpha = arc / total;
-                        let t = tangent(out, s);
-                        for side in 0..2 {
-                            let n = rotate_about(v3(out[s][side].normal), t, alpha * theta[side]);
-                            out[s][side].normal = orthonormalize(n, t).unwrap_or(n).to_array();
-                            out[s][side].scale[1] = (1.0 - alpha) * first.width[side] + alpha * last.width[side];
-                        }
-                        arc += out[s][0].scale[0];
-                    }
-                }
+                    (theta, first.width, last.width)
+                })
             }
             (None, Some(last)) => {
                 // Transport backwards from the end towards the anchor.
                 let mut u = last.normal;
                 for s in segs.clone().rev() {
                     if s + 1 < segs.end {
-                        for n in &mut u {
-                            *n = orthonormalize(transport(*n, tangent(out, s + 1), tangent(out, s)), tangent(out, s))
-                                .unwrap_or(*n);
-                        }
+                        transport(&mut u, tangent(out, s + 1), tangent(out, s));
                     }
                     for side in 0..2 {
                         out[s][side].normal = u[side].to_array();
                         out[s][side].scale[1] = last.width[side];
                     }
                 }
+                None
             }
             (None, None) => unreachable!("curves with no intersection are skipped"),
-        }
+        };
+        // Between two intersections, blend in the torsion and the widths by
+        // arc length; then every normal is made a unit vector orthogonal to
+        // its tangent (once, here: the transport is a rotation, so the chain
+        // above needs no renormalising step) and the frame completed.
+        let total: f64 = if theta.is_some() { segs.clone().map(|s| out[s][0].scale[0]).sum() } else { 0.0 };
+        let mut arc = 0.0;
         for s in segs {
-            for f in &mut out[s] {
-                let (t, n) = (v3(f.tangent), v3(f.normal));
+            let t = tangent(out, s);
+            let l = out[s][0].scale[0];
+            for side in 0..2 {
+                let f = &mut out[s][side];
+                let mut n = v3(f.normal);
+                if let Some((theta, w_first, w_last)) = theta {
+                    let alpha = arc / total;
+                    n = rotate_about(n, t, alpha * theta[side]);
+                    f.scale[1] = (1.0 - alpha) * w_first[side] + alpha * w_last[side];
+                }
+                let n = orthonormalize(n, t).unwrap_or(n);
+                f.normal = n.to_array();
                 f.binormal = n.cross(t).to_array();
                 f.scale[2] = (f.scale[0] * f.scale[1]).sqrt();
             }
+            arc += l;
         }
     }
     Ok(())

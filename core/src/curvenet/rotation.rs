@@ -6,17 +6,19 @@ use glam::{DMat3, DVec3};
 /// smallest rotation between them is not unique.
 const ANTIPARALLEL: f64 = 1e-12;
 
-/// Applies the smallest rotation taking unit `from` to unit `to` to the
-/// vector `n`: `c n + v × n + v (v·n)/(1 + c)` with `v = from × to`,
-/// `c = from·to`. For antiparallel `from`, `to` it uses the half turn about
-/// `n`'s component orthogonal to `from` (which keeps a normal unchanged).
-pub(crate) fn transport(n: DVec3, from: DVec3, to: DVec3) -> DVec3 {
+/// Applies the smallest rotation taking unit `from` to unit `to` to every
+/// vector `n` of `normals`: `c n + v × n + v (v·n)/(1 + c)` with
+/// `v = from × to`, `c = from·to` (the terms shared by all of them). For
+/// antiparallel `from`, `to` it uses the half turn about `n`'s component
+/// orthogonal to `from` (which keeps a normal unchanged).
+pub(crate) fn transport(normals: &mut [DVec3], from: DVec3, to: DVec3) {
     let c = from.dot(to);
     if 1.0 + c > ANTIPARALLEL {
         let v = from.cross(to);
-        c * n + v.cross(n) + v * (v.dot(n) / (1.0 + c))
-    } else {
-        n
+        let k = 1.0 / (1.0 + c);
+        for n in normals {
+            *n = c * *n + v.cross(*n) + v * (v.dot(*n) * k);
+        }
     }
 }
 
@@ -82,8 +84,12 @@ mod tests {
             let axis = a.cross(b);
             assert!((r * axis - axis).length() < 1e-12);
             if 1.0 + a.dot(b) > 1e-9 {
-                let n = a.any_orthonormal_vector();
-                assert!((transport(n, a, b) - r * n).length() < 1e-12);
+                let n = [a.any_orthonormal_vector(), a.cross(a.any_orthonormal_vector()), DVec3::new(0.3, -1.0, 2.0)];
+                let mut moved = n;
+                transport(&mut moved, a, b);
+                for (m, n) in moved.iter().zip(n) {
+                    assert!((*m - r * n).length() < 1e-12);
+                }
             }
         }
         let n = DVec3::X;
