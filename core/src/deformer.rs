@@ -690,6 +690,15 @@ impl Deformer {
         }
     }
 
+    /// Heap bytes a group workspace of `k` frames holds once it has solved
+    /// a group: [`Self::frames`] keeps it for reuse, one per thread solving
+    /// groups at once. That is `k` frame workspaces of `workspace_bytes`
+    /// each (as [`Self::prepare_workspace`] measures one) and the group's
+    /// interleaved block, 96·k bytes per unknown and per constraint row.
+    pub fn group_bytes(&self, k: usize, workspace_bytes: usize) -> usize {
+        k * workspace_bytes + self.binding.lanes_bytes(k)
+    }
+
     /// Makes one frame workspace now, so the first frame finds it in the
     /// pool, and returns its heap bytes (for callers that budget memory per
     /// workspace: one is kept per thread that solves frames at once).

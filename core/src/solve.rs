@@ -588,6 +588,14 @@ impl Binding {
         lanes.pos.resize(u * 3 * k, 0.0);
     }
 
+    /// Heap bytes of a group's block ([`Lanes`], as [`Self::lanes_start`]
+    /// sizes it) for `k` frames: 12 values per frame for every unknown and
+    /// every constraint row.
+    pub(crate) fn lanes_bytes(&self, k: usize) -> usize {
+        let (u, c) = (self.n_unknowns(), self.n_constraints());
+        ((u + c) * 9 + c * 3 + u * 3) * k * std::mem::size_of::<f64>()
+    }
+
     /// Every frame's constraint rows (f_c and x_c, from
     /// [`Self::deform_constraints`] in its workspace) into its lane.
     pub(crate) fn lanes_load<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) {

@@ -283,6 +283,40 @@ async fn json_and_binary_frames_equal_the_in_process_solve() {
     assert!(max_rel_diff(&triples(&data[..b.n_vertices() * 3]), &deform_reference(b, None)) <= F32_TOL);
 }
 
+/// The cache counts a binding at its measured size until frames are solved
+/// in groups on it; from the first batch on it also counts the group
+/// workspaces the deformer then keeps (per solve thread, the group's block:
+/// 96 bytes per frame per unknown and constraint row, and its frames'
+/// workspaces), once: single frames and later batches add nothing.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn group_workspaces_count_against_the_cache_from_the_first_batch() {
+    let app = app(state_with(test_config()));
+    let bound = post_binding(&app, hand()).await;
+    let id = &bound.binding_id;
+    let before = metric(&app, "curvenet_cache_bytes").await;
+    assert!(
+        before >= bound.size_bytes as f64 && before < (bound.size_bytes + 1024) as f64,
+        "{before} vs {}",
+        bound.size_bytes
+    );
+    let pool = &hand().curvenets[0].pool;
+    let frame = |a: f64| FrameRequest { posed: Some(vec![Some(rotated(pool, a))]), ..Default::default() };
+    let (status, _, body) = send(&app, post_json(&format!("/v1/bindings/{id}/frames"), &frame(20.0))).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(metric(&app, "curvenet_cache_bytes").await, before, "a single frame keeps no group workspace");
+    let batch = json!({ "frames": [frame(0.0), frame(10.0), frame(-25.0), frame(40.0)] });
+    let uri = format!("/v1/bindings/{id}/frames:batch");
+    let (status, _, body) = send(&app, post_json(&uri, &batch)).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let after = metric(&app, "curvenet_cache_bytes").await;
+    let rows = (bound.stats.unknowns + bound.stats.constraints) as f64;
+    let blocks = (test_config().solve_threads * curvenet_core::DEFAULT_BATCH_FRAMES) as f64 * 96.0 * rows;
+    assert!(after - before >= blocks, "the batch added {} bytes, less than the blocks' {blocks}", after - before);
+    let (status, _, _) = send(&app, post_json(&uri, &batch)).await;
+    assert_eq!(status, StatusCode::OK);
+    assert_eq!(metric(&app, "curvenet_cache_bytes").await, after, "charged once");
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn batches_answer_in_frame_order() {
     let app = app(state_with(test_config()));

@@ -367,6 +367,7 @@ pub fn build(
         + keep * workspace_bytes
         + ENTRY_OVERHEAD) as u64
         + cage.as_ref().map_or(0, |c| c.phi_bytes);
+    let group_bytes = (keep * deformer.group_bytes(crate::solve::BATCH_FRAMES, workspace_bytes)) as u64;
     let t = deformer.timings();
     let response = BindingResponse {
         binding_id: hex(&key),
@@ -387,6 +388,8 @@ pub fn build(
         deformer,
         response,
         size_bytes,
+        group_bytes,
+        groups_charged: Default::default(),
     })
 }
 
