@@ -11,7 +11,8 @@ const ANTIPARALLEL: f64 = 1e-12;
 /// `v = from × to`, `c = from·to` (the terms shared by all of them). For
 /// antiparallel `from`, `to` it uses the half turn about `n`'s component
 /// orthogonal to `from` (which keeps a normal unchanged).
-pub(crate) fn transport(normals: &mut [DVec3], from: DVec3, to: DVec3) {
+#[inline]
+pub(crate) fn transport<const N: usize>(normals: &mut [DVec3; N], from: DVec3, to: DVec3) {
     let c = from.dot(to);
     if 1.0 + c > ANTIPARALLEL {
         let v = from.cross(to);
