@@ -287,16 +287,18 @@ impl Cholesky {
 
     /// Solves `A X = B` for K right-hand sides stored per row: `rhs[i]` holds
     /// row i of B on entry and row i of X on return. `work` is scratch of the
-    /// same length (reuse it across calls: no allocation here).
+    /// same length (reuse it across calls: no allocation here); a factor in
+    /// its own order ([`Self::into_factor_order`]) solves in place and does
+    /// not use it, so it may be empty.
     pub fn solve_in_place<const K: usize>(&self, rhs: &mut [[f64; K]], work: &mut [[f64; K]]) {
         let n = self.n;
         assert_eq!(rhs.len(), n, "right-hand side rows");
-        assert_eq!(work.len(), n, "scratch rows");
         if self.renumbered.is_some() {
             // The identity permutation: the same sweeps on the rows in place.
             self.sweep::<K>(rhs);
             return;
         }
+        assert_eq!(work.len(), n, "scratch rows");
         for (k, w) in work.iter_mut().enumerate() {
             *w = rhs[self.perm[k] as usize];
         }

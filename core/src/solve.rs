@@ -49,9 +49,7 @@ pub struct Workspace {
     grad9: Vec<[f64; 9]>,
     n_unknowns: usize,
     xc: Vec<[f64; 3]>,
-    work9: Vec<[f64; 9]>,
     rhs3: Vec<[f64; 3]>,
-    work3: Vec<[f64; 3]>,
     // Rest-pose state (used when a frame brings its own rest pose).
     tracked: Vec<Vec<[f64; 3]>>,
     rest_samples: Vec<Vec<[f64; 3]>>,
@@ -82,9 +80,7 @@ impl Binding {
             grad9: vec![[0.0; 9]; self.n_unknowns() + self.n_constraints()],
             n_unknowns: self.n_unknowns(),
             xc: vec![[0.0; 3]; self.n_constraints()],
-            work9: vec![[0.0; 9]; self.n_unknowns()],
             rhs3: vec![[0.0; 3]; self.n_unknowns()],
-            work3: vec![[0.0; 3]; self.n_unknowns()],
             tracked: self.layouts.iter().map(|l| vec![[0.0; 3]; l.sampling().n_points()]).collect(),
             rest_samples: self.layouts.iter().map(|l| vec![[0.0; 3]; l.n_samples()]).collect(),
             rest_frames: self.layouts.iter().map(|l| vec![[zero_frame; 2]; l.n_segments()]).collect(),
@@ -449,9 +445,7 @@ impl Workspace {
             + bytes(&self.slot_f)
             + bytes(&self.grad9)
             + bytes(&self.xc)
-            + bytes(&self.work9)
             + bytes(&self.rhs3)
-            + bytes(&self.work3)
             + nested_bytes(&self.tracked)
             + nested_bytes(&self.rest_samples)
             + nested_bytes(&self.rest_frames)
@@ -657,11 +651,13 @@ impl Binding {
 
 impl Binding {
     /// The harmonic solve of one frame ([`Self::deform`]'s first solve).
+    /// The factor is in its own order (the binding renumbers its unknowns
+    /// so), so the solves need no scratch rows.
     pub(crate) fn solve_harmonic(&self, ws: &mut Workspace) {
-        self.solve_in_place(&mut ws.grad9[..ws.n_unknowns], &mut ws.work9);
+        self.solve_in_place(&mut ws.grad9[..ws.n_unknowns], &mut []);
     }
     /// The Poisson solve of one frame ([`Self::deform`]'s second solve).
     pub(crate) fn solve_poisson(&self, ws: &mut Workspace) {
-        self.solve_in_place(&mut ws.rhs3, &mut ws.work3);
+        self.solve_in_place(&mut ws.rhs3, &mut []);
     }
 }

@@ -487,7 +487,9 @@ impl Binding {
     pub fn unknown_vertex(&self, u: Unknown) -> MeshVertex {
         self.unknown_vertex[u.index()]
     }
-    /// Solves `VᵀL_hV x = rhs` for K columns stored per row (see [`Cholesky::solve_in_place`]).
+    /// Solves `VᵀL_hV x = rhs` for K columns stored per row (see
+    /// [`Cholesky::solve_in_place`]). The factor is in its own order (the
+    /// unknowns are numbered so), so `work` is not used and may be empty.
     pub fn solve_in_place<const K: usize>(&self, rhs: &mut [[f64; K]], work: &mut [[f64; K]]) {
         if rhs.is_empty() {
             return;
