@@ -318,11 +318,11 @@ pub struct BindingResponse {
     pub control_points: Vec<usize>,
     /// Number of blend shapes (the length of a frame's weights).
     pub blend_shapes: usize,
-    /// The binding's estimated memory, as weighed by the cache when it was
-    /// built (bytes): the binding and one frame workspace per solve thread.
-    /// The first batch solved on it adds the group workspaces the binding
-    /// then keeps (per solve thread, 8 frame workspaces and their
-    /// interleaved block), which the cache counts from then on.
+    /// The binding's estimated memory, as weighed by the cache (bytes): the
+    /// binding, one frame workspace per solve thread, and the group
+    /// workspaces it keeps once batches are solved on it (per solve thread,
+    /// 8 frame workspaces and their interleaved block), counted from the
+    /// start so that the cache's bound holds whatever frames come.
     pub size_bytes: u64,
     pub stats: BindingStats,
     pub timings: BindingTimings,

@@ -347,8 +347,10 @@ pub fn build(
     drop(input);
 
     // What the entry holds, measured (see `curvenet_core::heap`): the
-    // binding, the shapes, the projection pose, and the workspaces frames
-    // reuse (one per solve thread; the first is made now and measured).
+    // binding, the shapes, the projection pose, the workspaces frames
+    // reuse (one per solve thread; the first is made now and measured) and
+    // the group workspaces batches keep (one per solve thread; see
+    // `cache::Entry::size_bytes`).
     let b = deformer.binding();
     let workspace_bytes = deformer.prepare_workspace();
     let keep = keep.max(1);
@@ -365,9 +367,9 @@ pub fn build(
         + shapes_bytes
         + n * std::mem::size_of::<[f64; 3]>()
         + keep * workspace_bytes
+        + keep * deformer.group_bytes(crate::solve::BATCH_FRAMES, workspace_bytes)
         + ENTRY_OVERHEAD) as u64
         + cage.as_ref().map_or(0, |c| c.phi_bytes);
-    let group_bytes = (keep * deformer.group_bytes(crate::solve::BATCH_FRAMES, workspace_bytes)) as u64;
     let t = deformer.timings();
     let response = BindingResponse {
         binding_id: hex(&key),
@@ -388,8 +390,6 @@ pub fn build(
         deformer,
         response,
         size_bytes,
-        group_bytes,
-        groups_charged: Default::default(),
     })
 }
 

@@ -14,13 +14,11 @@
 //! is preceded by its length, so no two requests encode alike.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use curvenet_core::{Binding, Deformer};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, CurvenetSkinSpec};
 use moka::future::Cache;
 use moka::notification::RemovalCause;
-use moka::ops::compute::Op;
 use moka::policy::EvictionPolicy;
 
 use crate::binding::EffectiveOptions;
@@ -40,17 +38,14 @@ pub struct Entry {
     /// The answer to the post that computed it (`cached` false).
     pub response: BindingResponse,
     /// Bytes the entry holds, measured when it was built (counted against the
-    /// cache): the deformer with one workspace per solve thread.
+    /// cache): the deformer with one frame workspace per solve thread, and
+    /// the group workspaces it keeps once frames are solved in groups on it
+    /// (`Deformer::group_bytes`: per solve thread, the service's group size
+    /// of frame workspaces and their interleaved block). Counted from the
+    /// start: weighing an entry again when its first batch allocates them
+    /// raced with removals (the cache lost count) and let one batch evict
+    /// every other binding.
     pub size_bytes: u64,
-    /// Bytes solving frames in groups adds (`Deformer::group_bytes`: one
-    /// group workspace per solve thread, each the service's group size of
-    /// frame workspaces and their interleaved block), counted against the
-    /// cache from the first group solved on this entry on
-    /// ([`BindingCache::charge_groups`]): a binding only ever sent single
-    /// frames is not charged for memory it never allocates.
-    pub group_bytes: u64,
-    /// Whether `group_bytes` is counted yet.
-    pub groups_charged: AtomicBool,
 }
 
 impl Entry {
@@ -67,12 +62,6 @@ impl Entry {
     /// Blend shapes of the binding (the length of a frame's weights).
     pub fn n_shapes(&self) -> usize {
         self.deformer.blend_shapes().len()
-    }
-
-    /// Bytes counted against the cache: `size_bytes`, plus `group_bytes`
-    /// once a group has been solved on the entry.
-    pub fn weight_bytes(&self) -> u64 {
-        self.size_bytes + if self.groups_charged.load(Ordering::Acquire) { self.group_bytes } else { 0 }
     }
 }
 
@@ -99,7 +88,7 @@ impl BindingCache {
         let evictions = metrics.cache_evictions.clone();
         let cache = Cache::builder()
             .max_capacity(capacity_bytes / 1024)
-            .weigher(|_k: &Key, e: &Arc<Entry>| u32::try_from(e.weight_bytes().div_ceil(1024)).unwrap_or(u32::MAX))
+            .weigher(|_k: &Key, e: &Arc<Entry>| u32::try_from(e.size_bytes.div_ceil(1024)).unwrap_or(u32::MAX))
             .eviction_policy(EvictionPolicy::lru())
             .eviction_listener(move |_k, _v, cause| {
                 if matches!(cause, RemovalCause::Size | RemovalCause::Expired) {
@@ -151,28 +140,6 @@ impl BindingCache {
             return Err(too_small(value.size_bytes, self.capacity_bytes, "about"));
         }
         Ok((value, !fresh))
-    }
-
-    /// Counts `entry`'s [`Entry::group_bytes`] against the cache, once, when
-    /// a group of frames has been solved on it: the entry is weighed again
-    /// (moka weighs on insertion), which may evict others, least recently
-    /// used first, or the entry itself when it no longer fits. Nothing
-    /// when the entry has left the cache meanwhile (it is not put back).
-    pub async fn charge_groups(&self, entry: &Arc<Entry>) {
-        if entry.group_bytes == 0 || entry.groups_charged.swap(true, Ordering::AcqRel) {
-            return;
-        }
-        let Some(key) = parse_key(&entry.id) else { return };
-        let entry = entry.clone();
-        self.cache
-            .entry(key)
-            .and_compute_with(|held| async move {
-                match held {
-                    Some(h) if Arc::ptr_eq(h.value(), &entry) => Op::Put(entry),
-                    _ => Op::Nop,
-                }
-            })
-            .await;
     }
 
     /// Drops binding `key`; whether it was cached.

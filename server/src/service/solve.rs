@@ -54,7 +54,6 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
     answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
 ) -> Result<T, ServiceError> {
     let metrics = state.inner.metrics.clone();
-    let held = entry.clone();
     let (out, n, solve_ms) = state
         .on_pool(move || {
             let parallel = admission.parallel();
@@ -97,11 +96,6 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
             Ok((answer(&entry, solved)?, n, solve_ms))
         })
         .await?;
-    if n > 1 {
-        // The frames were solved in groups: the entry now keeps group
-        // workspaces, and the cache counts them.
-        state.inner.cache.charge_groups(&held).await;
-    }
     let span = tracing::Span::current();
     span.record("solve_ms", solve_ms);
     span.record("frames", n);
