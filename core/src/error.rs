@@ -95,6 +95,14 @@ pub enum Error {
     /// A connected component no curvenet touches, refused in strict mode.
     #[error("mesh component {component} ({vertices} vertices) is touched by no curvenet")]
     UntouchedComponent { component: usize, vertices: usize },
+    /// The binding's Laplacian is not numerically positive definite: a face
+    /// of the mesh is too thin for its cotangent weights. Names the first
+    /// failing pivot's mesh vertex and the face of that vertex's mesh
+    /// component with the smallest corner angle (the likely culprit).
+    #[error(
+        "the surface's Laplacian is not numerically positive definite (its factorisation failed at mesh vertex {vertex}): face {face} (vertices {vertices:?}) is the most nearly degenerate face of that part of the mesh, its smallest corner angle {angle_deg:.1e}°; remove or remesh the sliver"
+    )]
+    IllConditionedFace { vertex: u32, face: usize, vertices: Vec<u32>, angle_deg: f64 },
     /// A matrix that must be symmetric positive definite is not (numerically).
     #[error("the system matrix is not positive definite{}", pivot.map(|p| format!(" (first failing pivot: row {p})")).unwrap_or_default())]
     NotPositiveDefinite { pivot: Option<usize> },

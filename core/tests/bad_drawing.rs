@@ -234,6 +234,31 @@ fn degenerate_meshes_are_typed_errors_naming_the_element() {
     println!("non-manifold vertex: {e}");
 }
 
+/// A sliver that passes the zero-area check (a corner of the hand's face
+/// 10 moved to within 1e-9 of its height of the opposite edge's midpoint;
+/// found by the hostile review through the service) makes the
+/// Laplacian's factorisation fail: a typed error naming the sliver as the
+/// thinnest face, not an internal one.
+#[test]
+fn a_sliver_face_is_named_when_the_factorisation_fails() {
+    let (mesh, pts) = load_obj(&format!("{MESH_DIR}/hand_1k4.obj"));
+    let bvh = curvenet_core::ClosestPointBvh::new(&mesh, &pts).unwrap();
+    let net = surface_grid(&bvh, [-0.05, 0.45, 0.0], 0.03);
+    bind(&mesh, &pts, &net, false).unwrap_or_else(|e| panic!("the hand as it is: {e}"));
+    // Face 10's corner c goes almost onto the midpoint of its opposite edge.
+    let face = 10;
+    let f = mesh.face(face);
+    let (c, a, b) = (f[2], f[0], f[1]);
+    let mut p = pts.clone();
+    let mid: [f64; 3] = std::array::from_fn(|k| 0.5 * (pts[a as usize][k] + pts[b as usize][k]));
+    p[c as usize] = std::array::from_fn(|k| mid[k] + 1e-9 * (pts[c as usize][k] - mid[k]));
+    let e = bind(&mesh, &p, &net, false).map(|_| ()).unwrap_err();
+    println!("sliver: {e}");
+    let Error::IllConditionedFace { face: named, vertices, angle_deg, .. } = e else { panic!("{e}") };
+    assert_eq!(named, face, "the sliver is named");
+    assert!(vertices.contains(&c) && angle_deg < 1e-6, "{vertices:?} {angle_deg}");
+}
+
 /// The fish's subdivision cage has four quads and pentagons so warped that
 /// they fold over themselves in their own plane: they are split into
 /// triangles (named in a warning) and the cage binds like any mesh.

@@ -10,6 +10,7 @@ use crate::polygon_laplacian::{PolygonScratch, polygon_laplacian};
 use crate::sparse::Csr;
 
 use super::cut::CutMesh;
+use super::surface::Surface;
 use super::{BindWarning, Corner};
 use crate::ids::MeshVertex;
 
@@ -98,11 +99,15 @@ pub(crate) fn split_face(
     }
 }
 
-/// Factors `VᵀL_hV`. A pivot that fails is named by its mesh vertex and
-/// component: every unknown's component is constrained, so this is a bug or
-/// a numerically degenerate mesh there, not bad input the caller can fix.
+/// Factors `VᵀL_hV`. Every unknown's component is constrained, so the
+/// matrix is positive definite in exact arithmetic; a pivot that fails
+/// means a face too thin for the cotangent weights (a sliver that passed
+/// the zero-area check): [`Error::IllConditionedFace`] names the failing
+/// pivot's mesh vertex and the face of its component with the smallest
+/// corner angle.
 pub(crate) fn factor(
     system: Vec<(u32, u32, f64)>,
+    surface: &Surface,
     unknown_vertex: &[MeshVertex],
     vertex_component: &[u32],
 ) -> Result<Cholesky> {
@@ -112,13 +117,42 @@ pub(crate) fn factor(
     }
     Cholesky::new(&SymmetricTriplets { n, entries: system }).map_err(|e| match e {
         Error::NotPositiveDefinite { pivot } => {
-            let at = pivot.and_then(|u| unknown_vertex.get(u)).map_or(String::new(), |v| {
-                format!(" (first failing pivot at mesh vertex {v}, component {})", vertex_component[v.index()])
-            });
-            Error::Internal {
-                what: format!("VᵀLV is not positive definite although every unknown's component is constrained{at}"),
+            let Some(v) = pivot.and_then(|u| unknown_vertex.get(u)) else {
+                return Error::Internal { what: "VᵀLV is not positive definite (no failing pivot named)".into() };
+            };
+            let component = vertex_component[v.index()];
+            match thinnest_face(surface, |v| vertex_component[v as usize] == component) {
+                Some((f, angle_deg)) => Error::IllConditionedFace {
+                    vertex: v.index() as u32,
+                    face: surface.input_face[f] as usize,
+                    vertices: surface.mesh.face(f).to_vec(),
+                    angle_deg,
+                },
+                None => Error::Internal { what: format!("VᵀLV is not positive definite at mesh vertex {v}") },
             }
         }
         other => other,
     })
+}
+
+/// The face (of `surface`'s mesh) with the smallest corner angle, in
+/// degrees, among the faces whose first vertex `keep` accepts.
+fn thinnest_face(surface: &Surface, keep: impl Fn(u32) -> bool) -> Option<(usize, f64)> {
+    let p = &surface.points;
+    let mut best: Option<(usize, f64)> = None;
+    for f in 0..surface.mesh.n_faces() {
+        let c = surface.mesh.face(f);
+        if !keep(c[0]) {
+            continue;
+        }
+        for k in 0..c.len() {
+            let o = p[c[k] as usize];
+            let (a, b) = (p[c[(k + 1) % c.len()] as usize] - o, p[c[(k + c.len() - 1) % c.len()] as usize] - o);
+            let angle = a.cross(b).length().atan2(a.dot(b)).to_degrees();
+            if best.is_none_or(|(_, m)| angle < m) {
+                best = Some((f, angle));
+            }
+        }
+    }
+    best
 }

@@ -379,6 +379,7 @@ impl Binding {
         let t3 = Instant::now();
         let factor = assemble::factor(
             std::mem::take(&mut assembled.system),
+            &surface,
             &classified.unknown_vertex,
             &classified.vertex_component,
         )?;

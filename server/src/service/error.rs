@@ -393,6 +393,12 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
             d.vertices = Some(vertices.clone());
             Code::InvalidMesh
         }
+        E::IllConditionedFace { vertex, face, vertices, .. } => {
+            d.vertex = Some(*vertex);
+            d.face = Some(*face);
+            d.vertices = Some(vertices.clone());
+            Code::InvalidMesh
+        }
         E::RepeatedFaceVertex { face, vertex } => {
             d.face = Some(*face);
             d.vertex = Some(*vertex);
@@ -524,6 +530,7 @@ fn is_mesh_error(e: &curvenet_core::Error) -> bool {
         | E::NonManifoldVertex { .. }
         | E::CoincidentFaceVertices { .. }
         | E::ZeroAreaFace { .. }
+        | E::IllConditionedFace { .. }
         | E::FoldedFace { .. }
         | E::RepeatedFaceVertex { .. } => true,
         E::Empty { .. }

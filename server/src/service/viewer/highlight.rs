@@ -216,7 +216,7 @@ impl Scene<'_> {
                 h.faces.push(*face as u32);
                 h.vertices.extend([*a, *b]);
             }
-            Error::ZeroAreaFace { face, vertices, .. } => {
+            Error::ZeroAreaFace { face, vertices, .. } | Error::IllConditionedFace { face, vertices, .. } => {
                 h.faces.push(*face as u32);
                 h.vertices.extend(vertices);
             }
