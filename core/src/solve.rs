@@ -575,19 +575,26 @@ impl Binding {
     pub(crate) fn lanes_start(&self, lanes: &mut Lanes, k: usize) {
         assert!((1..=crate::sparse::MAX_LANES).contains(&k), "1 to {} frames in a group", crate::sparse::MAX_LANES);
         debug_assert!(self.factor.in_factor_order(), "rows of the lanes are the factor's");
-        let (u, c) = (self.n_unknowns(), self.n_constraints());
+        let [grad, xc, pos] = self.lanes_lens(k);
         lanes.lanes = k;
-        lanes.grad.resize((u + c) * 9 * k, 0.0);
-        lanes.xc.resize(c * 3 * k, 0.0);
-        lanes.pos.resize(u * 3 * k, 0.0);
+        lanes.grad.resize(grad, 0.0);
+        lanes.xc.resize(xc, 0.0);
+        lanes.pos.resize(pos, 0.0);
+    }
+
+    /// The lengths of a group's `grad`, `xc` and `pos` for `k` frames: 9
+    /// values per frame for every unknown and constraint row, 3 for every
+    /// constraint row, 3 for every unknown.
+    fn lanes_lens(&self, k: usize) -> [usize; 3] {
+        let (u, c) = (self.n_unknowns(), self.n_constraints());
+        [(u + c) * 9 * k, c * 3 * k, u * 3 * k]
     }
 
     /// Heap bytes of a group's block ([`Lanes`], as [`Self::lanes_start`]
     /// sizes it) for `k` frames: 12 values per frame for every unknown and
     /// every constraint row.
     pub(crate) fn lanes_bytes(&self, k: usize) -> usize {
-        let (u, c) = (self.n_unknowns(), self.n_constraints());
-        ((u + c) * 9 + c * 3 + u * 3) * k * std::mem::size_of::<f64>()
+        self.lanes_lens(k).iter().sum::<usize>() * std::mem::size_of::<f64>()
     }
 
     /// Every frame's constraint rows (f_c and x_c, from
