@@ -77,6 +77,7 @@ use faer::{Par, Side};
 
 use crate::error::{Error, Result};
 use crate::simd::Simd;
+use crate::sparse::disjoint_root;
 
 /// A symmetric matrix given by its lower triangle as `(row, col, value)`
 /// triplets with `row >= col`; duplicates are summed.
@@ -580,17 +581,9 @@ fn uncoupled_blocks(mat: &SparseColMat<u32, f64>) -> Vec<Vec<u32>> {
     let n = mat.nrows();
     let (cp, ri) = (mat.symbolic().col_ptr(), mat.symbolic().row_idx());
     let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn root(parent: &mut [u32], mut v: u32) -> u32 {
-        while parent[v as usize] != v {
-            let up = parent[parent[v as usize] as usize];
-            parent[v as usize] = up;
-            v = up;
-        }
-        v
-    }
     for j in 0..n {
         for &i in &ri[cp[j] as usize..cp[j + 1] as usize] {
-            let (a, b) = (root(&mut parent, i), root(&mut parent, j as u32));
+            let (a, b) = (disjoint_root(&mut parent, i), disjoint_root(&mut parent, j as u32));
             if a != b {
                 // The smaller index is the root: deterministic.
                 let (lo, hi) = (a.min(b), a.max(b));
@@ -602,7 +595,7 @@ fn uncoupled_blocks(mat: &SparseColMat<u32, f64>) -> Vec<Vec<u32>> {
     let mut component = vec![u32::MAX; n];
     let (mut rows, mut weight): (Vec<Vec<u32>>, Vec<usize>) = (Vec::new(), Vec::new());
     for v in 0..n {
-        let r = root(&mut parent, v as u32) as usize;
+        let r = disjoint_root(&mut parent, v as u32) as usize;
         if component[r] == u32::MAX {
             component[r] = rows.len() as u32;
             rows.push(Vec::new());

@@ -198,6 +198,17 @@ impl Csr {
     }
 }
 
+/// The root of `x` in the disjoint-set forest `parent` (`parent[r] == r`
+/// at a root), halving the path on the way (each visited node then points
+/// to its grandparent).
+pub(crate) fn disjoint_root(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        parent[x as usize] = parent[parent[x as usize] as usize];
+        x = parent[x as usize];
+    }
+    x
+}
+
 /// Groups items `i = 0..keys.len()` by their key `keys[i] < n_keys` (a
 /// counting sort): returns `start` (`n_keys + 1` offsets) and `order`, the
 /// items of key `k` at `order[start[k]..start[k + 1]]`, in increasing `i`.

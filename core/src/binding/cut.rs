@@ -26,6 +26,7 @@ use super::path::{Path, PathMethod, TraceFailure};
 use super::surface::{Surface, segments_cross};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
 use crate::halfedge::INVALID;
+use crate::sparse::disjoint_root;
 
 /// Cut-vertex bitmask: the cut-vertex is an input mesh vertex.
 pub const MESH_VERTEX: u8 = 1;
@@ -1023,26 +1024,19 @@ impl Pslg {
     fn remove_islands(&mut self, nb: u32) -> Islands {
         let n = self.pos.len();
         let mut comp: Vec<u32> = (0..n as u32).collect();
-        fn find(c: &mut [u32], mut x: u32) -> u32 {
-            while c[x as usize] != x {
-                c[x as usize] = c[c[x as usize] as usize];
-                x = c[x as usize];
-            }
-            x
-        }
         for e in (0..self.from.len()).step_by(2) {
-            let (a, b) = (find(&mut comp, self.from[e]), find(&mut comp, self.from[e + 1]));
+            let (a, b) = (disjoint_root(&mut comp, self.from[e]), disjoint_root(&mut comp, self.from[e + 1]));
             comp[a as usize] = b;
         }
         let mut touches = vec![false; n];
         for k in 0..nb {
-            let r = find(&mut comp, k);
+            let r = disjoint_root(&mut comp, k);
             touches[r as usize] = true;
         }
         let mut removed_nodes = Vec::new();
         let mut roots = Vec::new();
         for k in nb..n as u32 {
-            let r = find(&mut comp, k);
+            let r = disjoint_root(&mut comp, k);
             if !touches[r as usize] {
                 removed_nodes.push(k);
                 if !roots.contains(&r) {
