@@ -161,12 +161,17 @@ fn check(rel: &str) {
         assert!(moved > 1e-4 || i == 7, "{rel}: frame {i} moved the mesh by only {moved:e}");
     }
     assert!(relative(single[2].0.as_flattened(), single[3].0.as_flattened()) > 1e-4);
+    // Single frames leave the factor's row copy unmade; the first group makes it, counted then.
+    let (copy, held) = (deformer.binding().factor_row_copy_bytes(), deformer.binding().heap_bytes());
+    assert!(copy > 0, "{rel}: single frames made the factor's row copy");
     // All frames in groups of every size from 1 to all of them, and of 16 and 32 (the most a
     // group takes), the frames cycled to two full groups and a shorter last one.
     let all: Vec<usize> = (0..frames.len()).collect();
     for k in [1usize, 2, 3, 4, 5, 8, 9, 16, 32] {
         check_groups(rel, &deformer, &frames, &single, &all, k);
     }
+    assert_eq!(deformer.binding().factor_row_copy_bytes(), 0, "{rel}: groups did not make the row copy");
+    assert_eq!(deformer.binding().heap_bytes(), held + copy, "{rel}: the row copy is counted once made");
     // Groups whose every frame brings its own rest pose (given, or sculpted
     // by blend shapes before the solve), and groups whose frames need no
     // gradients back at all, in every fixed-width group size and the widest.

@@ -408,6 +408,9 @@ impl Deformer {
     /// for reuse, one set per thread solving groups at once), except as
     /// [`Self::frame`] does per frame: a workspace sizes the buffers a
     /// frame's mode needs the first time a frame in that mode uses it.
+    /// The first group of two or more frames on a binding also makes the
+    /// factor's row copy its forward sweeps read
+    /// ([`crate::binding::Binding::factor_row_copy_bytes`]), once.
     /// An error names the frame (its index in `frames`); the outputs of the
     /// other frames are then unspecified.
     pub fn frames(&self, frames: &[Frame<'_>], outs: &mut [FrameOut<'_>]) -> std::result::Result<(), BatchError> {

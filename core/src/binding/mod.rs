@@ -589,6 +589,14 @@ fn ms(a: Instant, b: Instant) -> f64 {
 }
 
 impl Binding {
+    /// Heap bytes of the factor's row copy that the first group of frames
+    /// makes (see [`crate::cholesky::Cholesky::row_copy_bytes`]), not in
+    /// [`Self::heap_bytes`] until then: callers that budget a binding's
+    /// memory before its first group add it.
+    pub fn factor_row_copy_bytes(&self) -> usize {
+        if self.factor.rows_made() { 0 } else { self.factor.row_copy_bytes() }
+    }
+
     /// Heap bytes held by the binding: the surface, the cut-mesh, the
     /// factor (with its symbolic analysis), the curvenet layouts and every
     /// per-corner, per-sample and per-vertex array. Add `std::mem::size_of::<Binding>()`

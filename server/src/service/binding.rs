@@ -348,9 +348,10 @@ pub fn build(
 
     // What the entry holds, measured (see `curvenet_core::heap`): the
     // binding, the shapes, the projection pose, the workspaces frames
-    // reuse (one per solve thread; the first is made now and measured) and
+    // reuse (one per solve thread; the first is made now and measured),
     // the group workspaces batches keep (one per solve thread; see
-    // `cache::Entry::size_bytes`).
+    // `cache::Entry::size_bytes`) and the factor's row copy the first batch
+    // makes.
     let b = deformer.binding();
     let workspace_bytes = deformer.prepare_workspace();
     let keep = keep.max(1);
@@ -368,6 +369,7 @@ pub fn build(
         + n * std::mem::size_of::<[f64; 3]>()
         + keep * workspace_bytes
         + keep * deformer.group_bytes(crate::solve::BATCH_FRAMES, workspace_bytes)
+        + b.factor_row_copy_bytes()
         + ENTRY_OVERHEAD) as u64
         + cage.as_ref().map_or(0, |c| c.phi_bytes);
     let t = deformer.timings();

@@ -41,7 +41,8 @@ pub struct Entry {
     /// cache): the deformer with one frame workspace per solve thread, and
     /// the group workspaces it keeps once frames are solved in groups on it
     /// (`Deformer::group_bytes`: per solve thread, the service's group size
-    /// of frame workspaces and their interleaved block). Counted from the
+    /// of frame workspaces and their interleaved block) and the factor's row
+    /// copy the first group makes (`Binding::factor_row_copy_bytes`). Counted from the
     /// start: weighing an entry again when its first batch allocates them
     /// raced with removals (the cache lost count) and let one batch evict
     /// every other binding.
