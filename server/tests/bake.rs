@@ -167,9 +167,15 @@ fn a_frame_range_bakes_exactly_those_frames() {
     let composed = compose(&dir, "root.usda", &[&out, &repo().join(SHOT)]);
     let mesh = composed.deformed_meshes().unwrap().remove(0);
     assert_eq!(mesh.rest_sample_times, [5.0, 6.0, 7.0]);
+    assert!(!stderr(&run).contains("warning"), "{}", stderr(&run));
     // A single frame.
     let run = bake(SHOT, &out, &["--frames", "9"]);
     assert!(run.status.success(), "{}", stderr(&run));
+    // Past the shot's end (1 .. 24): baked (USD holds the last samples), with a warning naming both ranges.
+    let run = bake(SHOT, &dir.join("late.usda"), &["--frames", "23-26", "--quiet"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(err.contains("warning") && err.contains("23-26") && err.contains("endTimeCode 24"), "{err}");
     let composed = compose(&dir, "root.usda", &[&out, &repo().join(SHOT)]);
     assert_eq!(composed.deformed_meshes().unwrap()[0].rest_sample_times, [9.0]);
     std::fs::remove_dir_all(&dir).unwrap();

@@ -358,6 +358,21 @@ pub(super) fn frames(
     inputs: &[super::DeformedMesh],
 ) -> CliResult<Vec<f64>> {
     if let Some(r) = requested {
+        // Frames outside the stage's range are valid USD times (a pre-roll,
+        // a chunk cut past the end): every attribute holds its nearest
+        // authored sample, so the bake repeats the first or last pose. Baked
+        // as asked, but said, since it is more often a wrong range.
+        if let Some((start, end)) = stage.time_code_range()
+            && ((r.first as f64) < start || (r.last as f64) > end)
+        {
+            eprintln!(
+                "curvenet: warning: {}: --frames {}-{} reaches outside the stage's startTimeCode {start} .. \
+                 endTimeCode {end}; frames there hold the nearest authored samples",
+                stage.path(),
+                r.first,
+                r.last
+            );
+        }
         return Ok((r.first..=r.last).map(|t| t as f64).collect());
     }
     if let Some((start, end)) = stage.time_code_range() {
