@@ -12,8 +12,15 @@
 //! ran. (The frame also calls the C library's `sin`, `cos` and `atan2`;
 //! glibc picks FMA builds of those at run time, and whether they round
 //! alike on every CPU is not verified here.)
-//! FMA would be faster still in the widest batches (measured about 1.3× at
-//! 72 columns) but would make the bytes depend on the machine.
+//! FMA would change no byte between machines if every variant used it (the
+//! baseline through the C library's exact `fma`), but it does not pay here:
+//! re-measured on 2026-12-02 with the hands' own factors, both sweeps
+//! interleaved in one process (medians of 41), fused multiply-adds took
+//! 0.92-1.22× the time of the separate multiply and subtract at 22k for 3
+//! to 72 columns (10 of 12 runs above 1) and 0.95-1.06× at 94k. A sweep's entry is bound by the
+//! dependency chain of its accumulator and by loads, not by arithmetic,
+//! and a fused multiply-add has the longer latency. (An earlier note here
+//! had it 1.3× faster at 72 columns; that did not reproduce.)
 //!
 //! Measured with the 22k and 94k hands' own factors on this machine (AMD
 //! EPYC with AVX-512, 2026-12-02, load 1.4; both sweeps, medians of 41):
