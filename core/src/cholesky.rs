@@ -652,12 +652,15 @@ const GATHER_WIDTH: usize = 16;
 /// both give the same bits (tested), and the width decides only the speed.
 ///
 /// Measured on the hands' own factors (both sweeps, the backward one the
-/// same in both; medians of 41, interleaved in one process, 2026-12-02):
-/// by rows ÷ by columns at 22k 0.80-0.87 for 24 and 72 columns, 0.91-0.92
-/// for 18, 1.0 for 9 and 12, 1.04-1.08 for 3 and 6; at 94k 0.94-0.97 for
-/// 24 and 72, 1.0 for 18, 1.05-1.14 for 9 and 12, 1.09-1.25 for 3 and 6.
-/// Narrow rows gather through one short dependency chain per entry, which
-/// the scatter's independent updates do not have. The copy costs 12 bytes
+/// same in both; medians of 41, interleaved in one process, 2026-12-02,
+/// two sets of runs): by rows ÷ by columns at 22k 0.59-0.87 for 24 and 72
+/// columns, 0.91-0.92 for 18, 1.0 for 9 and 12, 1.04-1.08 for 3 and 6; at
+/// 94k 0.86-0.97 for 24 and 72, 1.0 for 18, 1.05-1.14 for 9 and 12,
+/// 1.09-1.25 for 3 and 6. Narrow rows gather through one short dependency
+/// chain per entry, which the scatter's independent updates do not have.
+/// A whole group of 8 frames gains less than the sweeps alone (22k: about
+/// 2%, 94k: none measurable): the sweep of a frame's group runs with the
+/// caches full of the group's other data. The copy costs 12 bytes
 /// per entry of L (19 MB for the 94k hand) and 13 ms to make at 94k, so it
 /// is made at the first wide sweep, not with the factor: a binding that
 /// only ever solves single frames (most of the service's) never pays it,
