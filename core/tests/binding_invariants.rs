@@ -308,7 +308,7 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
     let b = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap();
     assert!(
-        b.warnings().contains(&BindWarning::UntouchedComponent { component: 1, vertices: 6 }),
+        b.warnings().contains(&BindWarning::UntouchedComponents { count: 1, vertices: 6, examples: vec![(1, 6)] }),
         "{:?}",
         b.warnings()
     );
@@ -328,6 +328,38 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
         Binding::new(&mesh, &pts, &[&layout], &BindOptions::default().with_strict(true)).unwrap_err(),
         Error::UntouchedComponent { component: 1, vertices: 6 }
     );
+}
+
+#[test]
+fn many_untouched_components_give_one_warning_with_their_count() {
+    let (hand_mesh, hand_pts) = hand();
+    // Seven small octahedra ("buttons") in a row, far from the curvenet.
+    let mut pts = hand_pts.clone();
+    let mut counts: Vec<u32> = hand_mesh.face_vertex_counts().collect();
+    let mut idx = hand_mesh.face_vertex_indices().to_vec();
+    let oct = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    for k in 0..7 {
+        let base = pts.len() as u32;
+        for p in [[1., 0., 0.], [-1., 0., 0.], [0., 1., 0.], [0., -1., 0.], [0., 0., 1.], [0., 0., -1.]] {
+            pts.push([3.0 + 0.2 * k as f64 + 0.05 * p[0], 0.5 + 0.05 * p[1], 0.05 * p[2]]);
+        }
+        for f in oct {
+            counts.push(3);
+            idx.extend(f.map(|v| base + v));
+        }
+    }
+    let mesh = PolyMesh::new(&counts, &idx, pts.len()).unwrap();
+    let bvh = curvenet_core::ClosestPointBvh::new(&hand_mesh, &hand_pts).unwrap();
+    let net = surface_grid(&bvh, [-0.05, 0.45, 0.0], 0.03);
+    let c = Curvenet::new(&net.splines, &net.points).unwrap();
+    let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
+    let b = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap();
+    let untouched: Vec<&BindWarning> =
+        b.warnings().iter().filter(|w| matches!(w, BindWarning::UntouchedComponents { .. })).collect();
+    let examples: Vec<(usize, usize)> = (1..=BindWarning::EXAMPLES).map(|c| (c, 6)).collect();
+    assert_eq!(untouched, [&BindWarning::UntouchedComponents { count: 7, vertices: 42, examples }]);
+    let message = untouched[0].to_string();
+    assert!(message.starts_with("7 mesh components (42 vertices in all)") && message.ends_with(", ..."), "{message}");
 }
 
 #[test]

@@ -467,11 +467,15 @@ pub struct Warning {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub faces: Vec<u32>,
     /// The mesh component an `untouched_component` warning names (the
-    /// numbering of the binding's connected components).
+    /// numbering of the binding's connected components): the first of
+    /// `count` (one warning stands for every untouched component; its
+    /// message lists the first few).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub component: Option<usize>,
     /// How many places the warning is about, when it lists only some
-    /// (`curves_touch`: every meeting point; `touches` shows the first few).
+    /// (`curves_touch`: every meeting point, `touches` shows the first few;
+    /// `untouched_component`: every untouched component, `component` is
+    /// the first).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub count: Option<usize>,
 }
@@ -516,8 +520,9 @@ impl From<&curvenet_core::BindWarning> for Warning {
             count: None,
         };
         out.code = match w {
-            W::UntouchedComponent { component, .. } => {
-                out.component = Some(*component);
+            W::UntouchedComponents { count, examples, .. } => {
+                out.component = examples.first().map(|&(c, _)| c);
+                out.count = Some(*count);
                 "untouched_component"
             }
             W::IslandsRemoved { .. } => "islands_removed",
@@ -888,4 +893,20 @@ pub struct BinaryResponseHeader {
     /// As in [`FrameResponse::knot_orientations`], when asked for.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub knot_orientations: Option<Vec<std::collections::BTreeMap<String, [f64; 9]>>>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn untouched_components_go_out_as_one_warning_with_the_first_and_the_count() {
+        let w =
+            curvenet_core::BindWarning::UntouchedComponents { count: 9, vertices: 54, examples: vec![(2, 6), (4, 6)] };
+        let out = Warning::from(&w);
+        assert_eq!((out.code.as_str(), out.component, out.count), ("untouched_component", Some(2), Some(9)));
+        let json = serde_json::to_value(&out).unwrap();
+        assert_eq!((json["component"].as_u64(), json["count"].as_u64()), (Some(2), Some(9)));
+        assert!(out.message.contains("9 mesh components"), "{}", out.message);
+    }
 }

@@ -143,13 +143,21 @@ pub(crate) fn classify(
             component_vertices[c as usize] += 1;
         }
     }
+    let (mut count, mut vertices, mut examples) = (0, 0, Vec::new());
     for (c, &t) in touched.iter().enumerate() {
         if !t {
             if strict {
                 return Err(Error::UntouchedComponent { component: c, vertices: component_vertices[c] });
             }
-            warnings.push(BindWarning::UntouchedComponent { component: c, vertices: component_vertices[c] });
+            count += 1;
+            vertices += component_vertices[c];
+            if examples.len() < BindWarning::EXAMPLES {
+                examples.push((c, component_vertices[c]));
+            }
         }
+    }
+    if count > 0 {
+        warnings.push(BindWarning::UntouchedComponents { count, vertices, examples });
     }
     // Unknowns are numbered along a space-filling curve over the vertices'
     // positions, not in the mesh's vertex order: meshes from scans,

@@ -100,9 +100,12 @@ impl BindOptions {
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum BindWarning {
-    /// A connected component of the mesh touched by no curvenet: its
-    /// vertices pass through at the rest pose.
-    UntouchedComponent { component: usize, vertices: usize },
+    /// Connected components of the mesh touched by no curvenet: their
+    /// vertices pass through at the rest pose. One warning for all of
+    /// them (a mesh of many loose pieces would otherwise give one per
+    /// piece): `count` components, `vertices` vertices in all, and the
+    /// first [`BindWarning::EXAMPLES`] as `(component, vertices)`.
+    UntouchedComponents { count: usize, vertices: usize, examples: Vec<(usize, usize)> },
     /// Curvenet clusters held inside single faces were removed (too fine for the mesh).
     IslandsRemoved { islands: usize, samples: usize },
     /// Cut-faces of (numerically) zero area were left out of the Laplacian.
@@ -135,10 +138,23 @@ impl BindWarning {
 impl std::fmt::Display for BindWarning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            BindWarning::UntouchedComponent { component, vertices } => write!(
-                f,
-                "mesh component {component} ({vertices} vertices) is touched by no curvenet; its vertices pass through at the rest pose"
-            ),
+            BindWarning::UntouchedComponents { count, vertices, examples } => {
+                if let [(component, _)] = examples[..]
+                    && *count == 1
+                {
+                    return write!(
+                        f,
+                        "mesh component {component} ({vertices} vertices) is touched by no curvenet; its vertices pass through at the rest pose"
+                    );
+                }
+                let shown: Vec<String> = examples.iter().map(|(c, v)| format!("{c} ({v} vertices)")).collect();
+                write!(
+                    f,
+                    "{count} mesh components ({vertices} vertices in all) are touched by no curvenet; their vertices pass through at the rest pose: components {}{}",
+                    shown.join(", "),
+                    if *count > examples.len() { ", ..." } else { "" }
+                )
+            }
             BindWarning::IslandsRemoved { islands, samples } => {
                 write!(f, "{islands} curvenet islands inside single faces were removed ({samples} samples)")
             }
