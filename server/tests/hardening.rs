@@ -913,3 +913,57 @@ fn the_command_line_exits_quietly_when_its_reader_goes_away() {
         assert!(output.status.success() || output.status.signal() == Some(13), "{args:?}: {:?}", output.status);
     }
 }
+
+/// One answer off a keep-alive connection: status, head, body (by its Content-Length).
+fn read_one(s: &mut TcpStream) -> (u16, String, Vec<u8>) {
+    let mut raw = Vec::new();
+    let mut byte = [0u8; 1];
+    while !raw.ends_with(b"\r\n\r\n") {
+        assert_eq!(s.read(&mut byte).unwrap(), 1, "the connection closed mid-head: {}", String::from_utf8_lossy(&raw));
+        raw.push(byte[0]);
+    }
+    let head = String::from_utf8_lossy(&raw).to_ascii_lowercase();
+    let status = head.split(' ').nth(1).unwrap().parse().unwrap();
+    let len: usize =
+        head.lines().find_map(|l| l.strip_prefix("content-length:")).map_or(0, |v| v.trim().parse().unwrap());
+    let mut body = vec![0u8; len];
+    s.read_exact(&mut body).unwrap();
+    (status, head, body)
+}
+
+#[test]
+fn an_answer_that_leaves_the_body_unread_closes_the_connection_and_says_so() {
+    let _serial = one_at_a_time();
+    let server = Server::start(&["--body-limit", "1MiB"]);
+    let addr = server.addr;
+    let head = |path: &str, len: usize| {
+        format!(
+            "POST {path} HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/json\r\nContent-Length: {len}\r\n\r\n"
+        )
+    };
+    let unknown = format!("/v1/bindings/{}/frames:batch", "0".repeat(64));
+    // Refused before the body is read: an unknown binding (1 KB of 200 KB sent), a declared length over the limit.
+    for (path, len) in [(unknown.as_str(), 200_000), ("/v1/deform", 2 << 20)] {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+        s.write_all(head(path, len).as_bytes()).unwrap();
+        s.write_all(&[b' '; 1024]).unwrap();
+        let (status, answer, _) = read_one(&mut s);
+        assert!(matches!(status, 404 | 413), "{path}: {answer}");
+        assert!(answer.contains("connection: close"), "{path}: {answer}");
+        // The server closes it: the read ends (or is reset) instead of waiting for more.
+        let mut rest = Vec::new();
+        let _ = s.read_to_end(&mut rest);
+    }
+    // An answer after the whole body was read keeps the connection for the next request.
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let body = b"{\"not\": \"a deform request\"}";
+    s.write_all(head("/v1/deform", body.len()).as_bytes()).unwrap();
+    s.write_all(body).unwrap();
+    let (status, answer, _) = read_one(&mut s);
+    assert!((400..500).contains(&status) && !answer.contains("connection: close"), "{answer}");
+    s.write_all(format!("GET /healthz HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes()).unwrap();
+    let (status, answer, _) = read_one(&mut s);
+    assert_eq!(status, 200, "{answer}");
+}

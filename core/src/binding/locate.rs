@@ -10,7 +10,7 @@ pub enum Location {
     /// At mesh vertex `v`.
     Vertex(u32),
     /// On a mesh edge, at parameter `t` in (0, 1) from `tail(h)` to `head(h)`,
-    /// where `h` is the edge's canonical halfedge ([`Surface::canonical`]).
+    /// where `h` is the edge's canonical halfedge ([`Surface::canonical`](super::Surface::canonical)).
     Edge { h: u32, t: f64 },
     /// Inside face `face`, in its triangle `tri` (index into the surface's
     /// triangles) with barycentric coordinates `bary`.

@@ -353,11 +353,12 @@ impl Binding {
     }
 
     /// Like [`Self::new`] with a prepared surface. The stages, one
-    /// function each: join the curvenets ([`join`]) → cut the mesh along
-    /// them ([`CutMesh::new`]) and check how they were drawn ([`drawing`]) →
-    /// classify the corners and number the unknowns ([`classify`]) →
-    /// assemble the Laplacian and factor it ([`assemble`]) → the
-    /// right-hand-side maps and the knots' bindings ([`rhs`]).
+    /// function each (private modules of `core/src/binding/`): join the
+    /// curvenets (`join`) → cut the mesh along them ([`CutMesh::new`]) and
+    /// check how they were drawn (`drawing`) → classify the corners and
+    /// number the unknowns (`classify`) → assemble the Laplacian and factor
+    /// it (`assemble`) → the right-hand-side maps and the knots' bindings
+    /// (`rhs`).
     pub fn with_surface(
         surface: Surface,
         curvenets: &[&CurvenetLayout],

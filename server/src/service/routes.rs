@@ -1,5 +1,6 @@
 //! The router: every route and the layers around it (request ids, tracing,
-//! panics, the declared-length check, the token, the request metrics). The
+//! panics, closing connections whose request body went unread, the
+//! declared-length check, the token, the request metrics). The
 //! handlers live in one file per resource (bindings.rs, frames.rs,
 //! batches.rs, deform.rs, bake.rs, operations.rs, viewer.rs); the steps they
 //! share are extractors (extract.rs) and the one solve helper (solve.rs).
@@ -70,6 +71,7 @@ pub fn app(state: AppState) -> Router {
                         .make_span_with(make_span)
                         .on_response(DefaultOnResponse::new().level(tracing::Level::INFO)),
                 )
+                .layer(axum::middleware::from_fn(close_if_unread))
                 .layer(CatchPanicLayer::custom(|panic: Box<dyn std::any::Any + Send + 'static>| {
                     ServiceError::internal(format!("a handler panicked: {}", panic_message(&panic))).into_response()
                 }))
@@ -147,6 +149,56 @@ async fn count_requests(State(state): State<AppState>, req: Request, next: Next)
     let response = next.run(req).await;
     state.inner.metrics.request(&route, &method, response.status().as_u16(), t.elapsed());
     response
+}
+
+/// Answers that leave part of the request body unread (a refusal before
+/// the body is read: an unknown binding, a wrong token, a declared length
+/// over the limit) say `Connection: close`. The rest of the body is still
+/// on the connection, so it cannot carry the client's next request; hyper
+/// closes it after the answer, and without the header a keep-alive client
+/// would send its next request into a connection about to close.
+async fn close_if_unread(req: Request, next: Next) -> Response {
+    let read = Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let req = req.map(|body| {
+        read.store(http_body::Body::is_end_stream(&body), Ordering::Relaxed);
+        axum::body::Body::new(Watched { inner: body, read: read.clone() })
+    });
+    let mut response = next.run(req).await;
+    if !read.load(Ordering::Relaxed) {
+        response.headers_mut().insert(header::CONNECTION, HeaderValue::from_static("close"));
+    }
+    response
+}
+
+/// A request body that records when it has been read to its end.
+struct Watched {
+    inner: axum::body::Body,
+    read: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl http_body::Body for Watched {
+    type Data = axum::body::Bytes;
+    type Error = axum::Error;
+
+    fn poll_frame(
+        self: std::pin::Pin<&mut Self>,
+        cx: &mut std::task::Context<'_>,
+    ) -> std::task::Poll<Option<Result<http_body::Frame<Self::Data>, Self::Error>>> {
+        let this = self.get_mut();
+        let polled = std::pin::Pin::new(&mut this.inner).poll_frame(cx);
+        if matches!(polled, std::task::Poll::Ready(None)) || this.inner.is_end_stream() {
+            this.read.store(true, Ordering::Relaxed);
+        }
+        polled
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.inner.is_end_stream()
+    }
+
+    fn size_hint(&self) -> http_body::SizeHint {
+        self.inner.size_hint()
+    }
 }
 
 /// Refuses a declared Content-Length over the limit before reading anything.
