@@ -126,6 +126,10 @@ pub struct FrameRange {
     pub last: i64,
 }
 
+/// The largest whole frame `--frames` takes, either sign: 2^53, past which
+/// consecutive integers no longer have distinct `f64` time codes.
+const MAX_TIME_CODE: u64 = 1 << 53;
+
 /// `A-B` or `A`; either bound may be negative (`-5--1`).
 pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
     let compact: String = s.chars().filter(|c| !c.is_whitespace()).collect();
@@ -139,10 +143,16 @@ pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
     let int =
         |x: &str| x.trim().parse::<i64>().map_err(|_| format!("{x:?} is not an integer frame (expected A-B or A)"));
     let (first, last) = (int(a)?, int(b)?);
+    // Time codes are doubles: past 2^53 two frames can share one.
+    if let Some(x) = [first, last].into_iter().find(|x| x.unsigned_abs() > MAX_TIME_CODE) {
+        return Err(format!(
+            "frame {x} is beyond ±{MAX_TIME_CODE}, the largest whole time code a USD double holds exactly"
+        ));
+    }
     if first > last {
         return Err(format!("{first}-{last} is empty: the first frame must not be after the last"));
     }
-    if last - first >= MAX_FRAMES {
+    if i128::from(last) - i128::from(first) >= i128::from(MAX_FRAMES) {
         return Err(format!("{first}-{last} is more than {MAX_FRAMES} frames"));
     }
     Ok(FrameRange { first, last })
@@ -649,6 +659,16 @@ mod tests {
         assert!(parse_frames("1.5-3").is_err());
         assert!(parse_frames("a-b").is_err());
         assert!(parse_frames("").is_err());
+        // Spans and bounds at the edges of i64 and of exact doubles: refused, never overflowing.
+        for bad in ["-1-9223372036854775807", "-9223372036854775808-9223372036854775807", "9007199254740993"] {
+            assert!(parse_frames(bad).is_err(), "{bad}");
+        }
+        assert!(parse_frames("-5000000000000000000-5000000000000000000").unwrap_err().contains("beyond"));
+        assert_eq!(
+            parse_frames("9007199254740991-9007199254740992"),
+            Ok(FrameRange { first: 9007199254740991, last: 9007199254740992 })
+        );
+        assert!(parse_frames("-9007199254740992-0").unwrap_err().contains("more than"));
         assert!(parse_frames("1-100000000").is_err());
     }
 }
