@@ -72,7 +72,9 @@ pub fn too_small(bytes: u64, capacity: u64, how: &str) -> ServiceError {
     ServiceError::new(
         Code::CacheTooSmall,
         format!(
-            "the binding needs {how} {bytes} bytes but the whole cache holds {capacity} (CURVENET_CACHE_BYTES / --cache-bytes)"
+            "the binding needs {how} {bytes} bytes but the whole cache holds {capacity} (CURVENET_CACHE_BYTES / \
+             --cache-bytes); a binding's size includes a frame workspace and a batch's group workspace per solve \
+             thread (--solve-threads), most of it on small meshes with many threads"
         ),
     )
 }
