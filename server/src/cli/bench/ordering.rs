@@ -107,7 +107,10 @@ pub(super) fn compare(binding: &Binding, repeats: usize, solves: usize) -> CliRe
             factor_nonzeros: f.nnz(),
             ordering_ms,
             factor_ms,
-            numeric_ms: factor_ms - ordering_ms,
+            // The analysis of a blockwise factorisation sums its blocks'
+            // times across threads, so it can exceed the wall time: never
+            // a negative numeric stage.
+            numeric_ms: (factor_ms - ordering_ms).max(0.0),
             solve_ms: run.solves.wall(),
             supernodal: f.is_supernodal(),
         }
