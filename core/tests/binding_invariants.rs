@@ -285,34 +285,56 @@ fn quad_and_nonplanar_pentagon_meshes_bind_and_reproduce_rigid_motions() {
     }
 }
 
-#[test]
-fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() {
+/// The hand with `n` small closed octahedra ("eyeballs", "buttons") in a
+/// row far from the curvenet; the hand's points come first.
+fn hand_and_octahedra(n: usize) -> (PolyMesh, Vec<[f64; 3]>, PolyMesh, Vec<[f64; 3]>) {
     let (hand_mesh, hand_pts) = hand();
-    // Append a small closed "eyeball" (an octahedron) far from the curvenet.
     let mut pts = hand_pts.clone();
-    let base = pts.len() as u32;
-    for p in [[1., 0., 0.], [-1., 0., 0.], [0., 1., 0.], [0., -1., 0.], [0., 0., 1.], [0., 0., -1.]] {
-        pts.push([3.0 + 0.05 * p[0], 0.5 + 0.05 * p[1], 0.05 * p[2]]);
-    }
-    let oct = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
     let mut counts: Vec<u32> = hand_mesh.face_vertex_counts().collect();
     let mut idx = hand_mesh.face_vertex_indices().to_vec();
-    for f in oct {
-        counts.push(3);
-        idx.extend(f.map(|v| base + v));
+    let oct = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    for k in 0..n {
+        let base = pts.len() as u32;
+        for p in [[1., 0., 0.], [-1., 0., 0.], [0., 1., 0.], [0., -1., 0.], [0., 0., 1.], [0., 0., -1.]] {
+            pts.push([3.0 + 0.2 * k as f64 + 0.05 * p[0], 0.5 + 0.05 * p[1], 0.05 * p[2]]);
+        }
+        for f in oct {
+            counts.push(3);
+            idx.extend(f.map(|v| base + v));
+        }
     }
     let mesh = PolyMesh::new(&counts, &idx, pts.len()).unwrap();
-    let bvh = curvenet_core::ClosestPointBvh::new(&hand_mesh, &hand_pts).unwrap();
+    (mesh, pts, hand_mesh, hand_pts)
+}
+
+/// The hand's surface grid curvenet bound to `mesh` (the hand plus octahedra).
+fn bind_hand_grid(
+    mesh: &PolyMesh,
+    pts: &[[f64; 3]],
+    hand_mesh: &PolyMesh,
+    hand_pts: &[[f64; 3]],
+    strict: bool,
+) -> (Result<Binding, Error>, Vec<[f64; 3]>) {
+    let bvh = curvenet_core::ClosestPointBvh::new(hand_mesh, hand_pts).unwrap();
     let net = surface_grid(&bvh, [-0.05, 0.45, 0.0], 0.03);
     let c = Curvenet::new(&net.splines, &net.points).unwrap();
-    let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
-    let b = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap();
+    let layout = CurvenetLayout::new(&c, mesh, pts, &SamplingOptions::default()).unwrap();
+    (Binding::new(mesh, pts, &[&layout], &BindOptions::default().with_strict(strict)), net.points)
+}
+
+#[test]
+fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() {
+    // A small closed "eyeball" (an octahedron) far from the curvenet.
+    let (mesh, pts, hand_mesh, hand_pts) = hand_and_octahedra(1);
+    let base = hand_pts.len() as u32;
+    let (b, net_points) = bind_hand_grid(&mesh, &pts, &hand_mesh, &hand_pts, false);
+    let b = b.unwrap();
     assert!(
         b.warnings().contains(&BindWarning::UntouchedComponents { count: 1, vertices: 6, examples: vec![(1, 6)] }),
         "{:?}",
         b.warnings()
     );
-    let pool: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1], p[2]]).collect();
+    let pool: Vec<[f64; 3]> = net_points.iter().map(|p| [p[0] + 0.1, p[1], p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
     b.deform(
@@ -324,36 +346,15 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     .unwrap();
     assert_eq!(&out[base as usize..], &pts[base as usize..], "the eyeball passes through");
     assert!((out[0][0] - pts[0][0] - 0.1).abs() < 1e-9, "the hand moves with the curvenet");
-    assert_eq!(
-        Binding::new(&mesh, &pts, &[&layout], &BindOptions::default().with_strict(true)).unwrap_err(),
-        Error::UntouchedComponent { component: 1, vertices: 6 }
-    );
+    let (strict, _) = bind_hand_grid(&mesh, &pts, &hand_mesh, &hand_pts, true);
+    assert_eq!(strict.unwrap_err(), Error::UntouchedComponent { component: 1, vertices: 6 });
 }
 
 #[test]
 fn many_untouched_components_give_one_warning_with_their_count() {
-    let (hand_mesh, hand_pts) = hand();
     // Seven small octahedra ("buttons") in a row, far from the curvenet.
-    let mut pts = hand_pts.clone();
-    let mut counts: Vec<u32> = hand_mesh.face_vertex_counts().collect();
-    let mut idx = hand_mesh.face_vertex_indices().to_vec();
-    let oct = [[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    for k in 0..7 {
-        let base = pts.len() as u32;
-        for p in [[1., 0., 0.], [-1., 0., 0.], [0., 1., 0.], [0., -1., 0.], [0., 0., 1.], [0., 0., -1.]] {
-            pts.push([3.0 + 0.2 * k as f64 + 0.05 * p[0], 0.5 + 0.05 * p[1], 0.05 * p[2]]);
-        }
-        for f in oct {
-            counts.push(3);
-            idx.extend(f.map(|v| base + v));
-        }
-    }
-    let mesh = PolyMesh::new(&counts, &idx, pts.len()).unwrap();
-    let bvh = curvenet_core::ClosestPointBvh::new(&hand_mesh, &hand_pts).unwrap();
-    let net = surface_grid(&bvh, [-0.05, 0.45, 0.0], 0.03);
-    let c = Curvenet::new(&net.splines, &net.points).unwrap();
-    let layout = CurvenetLayout::new(&c, &mesh, &pts, &SamplingOptions::default()).unwrap();
-    let b = Binding::new(&mesh, &pts, &[&layout], &BindOptions::default()).unwrap();
+    let (mesh, pts, hand_mesh, hand_pts) = hand_and_octahedra(7);
+    let b = bind_hand_grid(&mesh, &pts, &hand_mesh, &hand_pts, false).0.unwrap();
     let untouched: Vec<&BindWarning> =
         b.warnings().iter().filter(|w| matches!(w, BindWarning::UntouchedComponents { .. })).collect();
     let examples: Vec<(usize, usize)> = (1..=BindWarning::EXAMPLES).map(|c| (c, 6)).collect();
