@@ -302,9 +302,9 @@ impl Cholesky {
     }
 
     /// Heap bytes of the row copy of L that the first sweep of a group's
-    /// columns makes (`Rows`: by rows, the forward sweep of 16 or more columns
-    /// runs faster), whether made yet or not: callers that
-    /// budget a binding's memory before its first group count it with
+    /// columns makes (`Rows`: by rows, the forward sweep of 16 or more
+    /// columns runs faster), whether made yet or not: callers that budget a
+    /// binding's memory before its first group count it with
     /// [`Self::heap_bytes`], which counts it only once it is made.
     pub fn row_copy_bytes(&self) -> usize {
         Rows::bytes_for(self.n, self.values.len())

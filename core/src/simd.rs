@@ -17,9 +17,9 @@
 //! re-measured on 2026-12-02 with the hands' own factors, both sweeps
 //! interleaved in one process (medians of 41), fused multiply-adds took
 //! 0.92-1.22× the time of the separate multiply and subtract at 22k for 3
-//! to 72 columns (10 of 12 runs above 1) and 0.95-1.06× at 94k. A sweep's entry is bound by the
-//! dependency chain of its accumulator and by loads, not by arithmetic,
-//! and a fused multiply-add has the longer latency. (An earlier note here
+//! to 72 columns (10 of 12 runs above 1) and 0.95-1.06× at 94k. A sweep's
+//! entry is bound by the dependency chain of its accumulator and by loads,
+//! not by arithmetic, and a fused multiply-add has the longer latency. (An earlier note here
 //! had it 1.3× faster at 72 columns; that did not reproduce.)
 //!
 //! Measured with the 22k and 94k hands' own factors on this machine (AMD

@@ -42,10 +42,10 @@ pub struct Entry {
     /// the group workspaces it keeps once frames are solved in groups on it
     /// (`Deformer::group_bytes`: per solve thread, the service's group size
     /// of frame workspaces and their interleaved block) and the factor's row
-    /// copy the first group makes (`Binding::factor_row_copy_bytes`). Counted from the
-    /// start: weighing an entry again when its first batch allocates them
-    /// raced with removals (the cache lost count) and let one batch evict
-    /// every other binding.
+    /// copy the first group makes (`Binding::factor_row_copy_bytes`).
+    /// Counted from the start: weighing an entry again when its first batch
+    /// allocates them raced with removals (the cache lost count) and let one
+    /// batch evict every other binding.
     pub size_bytes: u64,
 }
 
