@@ -743,6 +743,12 @@ pub struct BakeResponse {
     /// The canonical output path.
     pub output: String,
     pub elapsed_ms: f64,
+    /// What `curvenet bake` would print as warnings on stderr (without its
+    /// `curvenet: warning: ` prefix), each naming the stage or prim: the
+    /// bindings' warnings, skin weights that do not sum to 1, a frame range
+    /// reaching outside the stage's. Empty when there were none.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// Every error answer: a stable snake_case `code` (see the service's code

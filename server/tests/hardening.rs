@@ -882,6 +882,23 @@ fn the_small_things() {
     assert_eq!(a.status, 200, "{}", a.text());
     assert!(!stale.exists(), "the stale temporary file is still there");
     assert!(shot_dir.join("out.usda").is_file());
+    assert_eq!(a.json()["warnings"], json!([]), "{}", a.text());
+    // A bake's warnings come back in its answer (the command line prints them
+    // on stderr): frames past the shot's endTimeCode 24 are baked, and said.
+    let a = bake("shot/shot.usda", "shot/late.usda", Some("23-26"));
+    assert_eq!(a.status, 200, "{}", a.text());
+    let warnings = a.json()["warnings"].as_array().cloned().unwrap_or_default();
+    assert_eq!(warnings.len(), 1, "{}", a.text());
+    let w = warnings[0].as_str().unwrap_or_default();
+    assert!(w.contains("shot.usda") && w.contains("23-26") && w.contains("endTimeCode 24"), "{w}");
+    assert!(shot_dir.join("late.usda").is_file());
+    // An output directory that does not exist: worth retrying (503, as the
+    // command line's exit 75), naming the directory; nothing is written.
+    let a = bake("shot/shot.usda", "shot/no/such/x.usda", Some("1-2"));
+    assert_eq!((a.status, a.code().as_str()), (503, "unavailable"), "{}", a.text());
+    assert!(a.text().contains("shot/no/such"), "{}", a.text());
+    assert!(a.head.to_ascii_lowercase().contains("retry-after:"), "{}", a.head);
+    assert!(!shot_dir.join("no").exists());
     let _ = std::fs::remove_dir_all(&root);
 }
 

@@ -676,7 +676,7 @@ async fn bake_paths_must_stay_inside_the_roots() {
         let jobs = jobs.clone();
         Arc::new(move |job: &BakeJob| {
             jobs.lock().unwrap().push(job.clone());
-            Ok(())
+            Ok(vec![format!("{}: a warning", job.stage.display())])
         })
     };
     let state = AppState::new(Config { bake_roots: vec![root.clone()], ..test_config() }, Some(baker)).unwrap();
@@ -708,6 +708,9 @@ async fn bake_paths_must_stay_inside_the_roots() {
     let job = jobs.lock().unwrap()[0].clone();
     assert_eq!(job.stage, canonical.join("shots/shot.usda"));
     assert_eq!(job.output, canonical.join("shots/baked.usda"));
+    // The baker's warnings are the answer's.
+    let answer: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(answer["warnings"], json!([format!("{}: a warning", job.stage.display())]));
     // No roots: baking is refused.
     let app = app_no_roots();
     let (status, _, body) = send(&app, bake(format!("{r}/shots/shot.usda"), format!("{r}/out.usda"))).await;

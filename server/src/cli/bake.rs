@@ -204,6 +204,13 @@ struct FrameData {
 }
 
 pub fn run(args: &Args) -> CliResult {
+    run_with(args, &mut |w| eprintln!("curvenet: warning: {w}"))
+}
+
+/// [`run`], every warning handed to `warn` as it arises (the command line
+/// prints it on stderr; `POST /v1/bake` returns them in its answer), each
+/// naming the stage or the prim it is about.
+pub fn run_with(args: &Args, warn: &mut dyn FnMut(String)) -> CliResult {
     let started = Instant::now();
     // Cheap checks first, so a bad command fails before any work.
     LayerFormat::from_path(&args.out).map_err(write_error)?;
@@ -226,7 +233,7 @@ pub fn run(args: &Args) -> CliResult {
         Stage::open_within(&args.input, &roots)?
     };
     let inputs = super::deformed_meshes(&stage, "bake")?;
-    let frames = frames(&stage, args.frames, &inputs)?;
+    let frames = frames(&stage, args.frames, &inputs, warn)?;
     let adjustments = inputs
         .iter()
         .map(|(_, nets, _)| nets.iter().map(|n| stage.curvenet_adjustments(n)).collect::<Result<Vec<_>, _>>())
@@ -254,14 +261,14 @@ pub fn run(args: &Args) -> CliResult {
         if let Some(rig) = rig
             && let Some(&p) = rig.unnormalized.first()
         {
-            eprintln!(
-                "curvenet: warning: {}: the skin weights of {} point{} (the first: point {p}, sum {}) do not sum \
-                 to 1; they are skinned as authored, as usd-core does",
+            warn(format!(
+                "{}: the skin weights of {} point{} (the first: point {p}, sum {}) do not sum to 1; they are \
+                 skinned as authored, as usd-core does",
                 m.path,
                 rig.unnormalized.len(),
                 if rig.unnormalized.len() == 1 { "" } else { "s" },
                 rig.skinning.skin.influences().weight_sum(p)
-            );
+            ));
         }
     }
     let jobs: Vec<MeshJob> = pool
@@ -269,7 +276,7 @@ pub fn run(args: &Args) -> CliResult {
     let bind_ms = ms(t_bind.elapsed());
     for job in &jobs {
         for w in job.deformer.binding().warnings() {
-            eprintln!("curvenet: warning: {}: {w}", job.mesh.path);
+            warn(format!("{}: {w}", job.mesh.path));
         }
     }
 
@@ -362,10 +369,13 @@ pub fn run(args: &Args) -> CliResult {
 
 /// The frames to bake: `--frames`, else the stage's time-code range, else
 /// the union of the time samples of the meshes' points and curvenets' pools.
+/// A requested range reaching outside the stage's is baked, with a warning
+/// to `warn`.
 pub(super) fn frames(
     stage: &Stage,
     requested: Option<FrameRange>,
     inputs: &[super::DeformedMesh],
+    warn: &mut dyn FnMut(String),
 ) -> CliResult<Vec<f64>> {
     if let Some(r) = requested {
         // Frames outside the stage's range are valid USD times (a pre-roll,
@@ -375,13 +385,13 @@ pub(super) fn frames(
         if let Some((start, end)) = stage.time_code_range()
             && ((r.first as f64) < start || (r.last as f64) > end)
         {
-            eprintln!(
-                "curvenet: warning: {}: --frames {}-{} reaches outside the stage's startTimeCode {start} .. \
-                 endTimeCode {end}; frames there hold the nearest authored samples",
+            warn(format!(
+                "{}: --frames {}-{} reaches outside the stage's startTimeCode {start} .. endTimeCode {end}; \
+                 frames there hold the nearest authored samples",
                 stage.path(),
                 r.first,
                 r.last
-            );
+            ));
         }
         return Ok((r.first..=r.last).map(|t| t as f64).collect());
     }

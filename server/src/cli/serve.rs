@@ -294,11 +294,14 @@ fn baker() -> Baker {
             let first = text.lines().next().unwrap_or_default().trim_start_matches("error: ");
             BakeFailure::Input(first.to_string())
         })?;
-        super::bake::run(&bake.args).map_err(|e| match e {
+        // The warnings go back in the answer, not to the server's stderr.
+        let mut warnings = Vec::new();
+        super::bake::run_with(&bake.args, &mut |w| warnings.push(w)).map_err(|e| match e {
             CliError::Usd(curvenet_schema::usd::UsdError::Forbidden { .. }) => BakeFailure::Forbidden(e.to_string()),
             e if e.exit_code() == 75 => BakeFailure::Retry(e.to_string()),
             e => BakeFailure::Input(e.to_string()),
-        })
+        })?;
+        Ok(warnings)
     })
 }
 
@@ -328,7 +331,7 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                     || inputs.iter().any(|(m, nets, _)| {
                         !m.rest_sample_times.is_empty() || nets.iter().any(|n| !n.sample_times.is_empty())
                     });
-                let times = if animated { super::bake::frames(&stage, None, &inputs)? } else { vec![0.0] };
+                let times = if animated { super::bake::frames(&stage, None, &inputs, &mut |_| {})? } else { vec![0.0] };
                 let name = stage.path().to_string();
                 let adjustments =
                     inputs.iter().map(|(_, nets, _)| stage_adjustments(&stage, nets)).collect::<CliResult<Vec<_>>>()?;

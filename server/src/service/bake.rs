@@ -46,7 +46,9 @@ pub enum BakeFailure {
 }
 
 /// Runs a bake to completion (blocking).
-pub type Baker = Arc<dyn Fn(&BakeJob) -> Result<(), BakeFailure> + Send + Sync>;
+/// Bakes a checked job; returns the bake's warnings (each naming the stage
+/// or prim it is about), which the answer carries.
+pub type Baker = Arc<dyn Fn(&BakeJob) -> Result<Vec<String>, BakeFailure> + Send + Sync>;
 
 fn forbidden(path: &str, roots: &[PathBuf]) -> ServiceError {
     if roots.is_empty() {
@@ -100,8 +102,11 @@ pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErr
     let lex = lexical(path, roots).filter(|p| inside(p, roots)).ok_or_else(|| forbidden(path, roots))?;
     let name = lex.file_name().ok_or_else(|| forbidden(path, roots))?.to_owned();
     let parent = lex.parent().ok_or_else(|| forbidden(path, roots))?;
+    // A directory that does not exist (yet) is worth retrying, as `curvenet
+    // bake` exits 75 for it: a farm's output mount may come up late.
     let parent = std::fs::canonicalize(parent).map_err(|e| {
-        ServiceError::new(Code::BakeFailed, format!("output {path}: its directory cannot be resolved: {e}"))
+        let code = if e.kind() == std::io::ErrorKind::NotFound { Code::Unavailable } else { Code::BakeFailed };
+        ServiceError::new(code, format!("output {path}: its directory {} cannot be resolved: {e}", parent.display()))
     })?;
     let out = parent.join(name);
     let resolved = match std::fs::symlink_metadata(&out) {
@@ -127,7 +132,7 @@ pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErr
         (status = 413, description = "payload_too_large", body = ErrorBody),
         (status = 415, description = "unsupported_media_type", body = ErrorBody),
         (status = 422, description = "bake_failed", body = ErrorBody),
-        (status = 503, description = "saturated or unavailable (Retry-After)", body = ErrorBody),
+        (status = 503, description = "saturated, or unavailable (Retry-After): an I/O failure, or the output's directory does not exist (`curvenet bake` exits 75 for both)", body = ErrorBody),
     ))]
 pub(crate) async fn bake(
     State(state): State<AppState>,
@@ -150,7 +155,7 @@ pub(crate) async fn bake(
     let admission = Admission::one(&state).await?;
     let t = Instant::now();
     let job2 = job.clone();
-    blocking(move || {
+    let warnings = blocking(move || {
         let _admission = admission;
         baker(&job2).map_err(|f| match f {
             BakeFailure::Input(m) => ServiceError::new(Code::BakeFailed, m),
@@ -163,6 +168,7 @@ pub(crate) async fn bake(
         stage: job.stage.display().to_string(),
         output: job.output.display().to_string(),
         elapsed_ms: t.elapsed().as_secs_f64() * 1e3,
+        warnings,
     })
     .into_response())
 }

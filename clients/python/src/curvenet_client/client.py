@@ -373,7 +373,9 @@ class Client:
 
     def bake(self, stage: str, output: str, frames: str | None = None) -> dict[str, Any]:
         """``POST /v1/bake``: the server bakes a stage on its own file system
-        (both paths inside its ``--bake-root``s). Returns ``{stage, output, elapsed_ms}``."""
+        (both paths inside its ``--bake-root``s). Returns ``{stage, output, elapsed_ms,
+        warnings}``, ``warnings`` the bake's warnings as ``curvenet bake`` prints them
+        (a list of strings; empty when there were none)."""
         doc: dict[str, Any] = {"stage": stage, "output": output}
         if frames is not None:
             doc["frames"] = frames
