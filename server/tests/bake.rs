@@ -205,6 +205,18 @@ fn bad_commands_exit_2_and_a_missing_output_directory_exits_75() {
     assert_eq!(run.status.code(), Some(75), "{}", stderr(&run));
     assert!(stderr(&run).contains("no/such/dir"), "{}", stderr(&run));
     assert_eq!(dir_names(&dir), Vec::<String>::new());
+    // Outputs that can never be written are bad input (2), before any work:
+    // a directory, a path naming one, a file where a directory must be.
+    std::fs::create_dir_all(dir.join("d.usda")).unwrap();
+    std::fs::write(dir.join("afile"), "").unwrap();
+    for out in [dir.join("d.usda"), dir.join("x.usda/"), dir.join("afile/x.usda")] {
+        let run = bake(SHOT, &out, &[]);
+        assert_eq!(run.status.code(), Some(2), "{}: {}", out.display(), stderr(&run));
+        assert!(stderr(&run).contains(out.parent().unwrap().to_str().unwrap()), "{}", stderr(&run));
+    }
+    assert_eq!(dir_names(&dir), ["afile", "d.usda"]);
+    std::fs::remove_dir(dir.join("d.usda")).unwrap();
+    std::fs::remove_file(dir.join("afile")).unwrap();
     let help = String::from_utf8(curvenet(&["bake", "--help"]).stdout).unwrap();
     assert!(help.contains("75") && help.contains("does not exist"), "{help}");
     std::fs::remove_dir_all(&dir).unwrap();

@@ -801,7 +801,11 @@ fn the_small_things() {
     let _serial = one_at_a_time();
     let token = "s3cret";
     let root = common::temp_dir("hardening", "bake");
-    let server = Server::start_with_env(&["--bake-root", root.to_str().unwrap()], &[("CURVENET_TOKEN", token)]);
+    // 200 KB of points: the 1,400-vertex shot's 24 frames are 403 KB.
+    let server = Server::start_with_env(
+        &["--bake-root", root.to_str().unwrap(), "--max-bake-bytes", "200KB"],
+        &[("CURVENET_TOKEN", token)],
+    );
     let addr = server.addr;
     // The bearer scheme is case-insensitive.
     for scheme in ["Bearer", "bearer", "BEARER", "bEaReR"] {
@@ -841,15 +845,9 @@ fn the_small_things() {
     assert!(a.text().contains("point_indices[1] repeats vertex 7"), "{}", a.text());
 
     // Bakes: a copy of the shipped shot inside the root.
-    let shot_dir = root.join("shot");
-    std::fs::create_dir_all(&shot_dir).unwrap();
+    let shot_dir = copy_shot(&root);
     let fixtures = common::repo().join("fixtures");
-    std::fs::copy(fixtures.join("shots/hand_wave/anim.usda"), shot_dir.join("anim.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/hand_1k4.usda"), shot_dir.join("hand_1k4.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/curvenet.usda"), shot_dir.join("curvenet.usda")).unwrap();
     let shot = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
-    std::fs::write(shot_dir.join("shot.usda"), shot.replace("@../../hand/hand_1k4.usda@", "@./hand_1k4.usda@"))
-        .unwrap();
     // Its hand layer as an absolute path outside the root: refused.
     let outside =
         shot.replace("@../../hand/hand_1k4.usda@", &format!("@{}@", fixtures.join("hand/hand_1k4.usda").display()));
@@ -899,6 +897,73 @@ fn the_small_things() {
     assert!(a.text().contains("shot/no/such"), "{}", a.text());
     assert!(a.head.to_ascii_lowercase().contains("retry-after:"), "{}", a.head);
     assert!(!shot_dir.join("no").exists());
+    // A path naming a directory is never a layer: refused (the command line exits 2).
+    let a = bake("shot/shot.usda", "shot/x.usda/", Some("1-2"));
+    assert_eq!((a.status, a.code().as_str()), (422, "bake_failed"), "{}", a.text());
+    assert!(!shot_dir.join("x.usda").exists());
+    // Over --max-bake-bytes: refused before any work, naming the limit.
+    let a = bake("shot/shot.usda", "shot/all.usda", None);
+    assert_eq!((a.status, a.code().as_str()), (422, "limit_exceeded"), "{}", a.text());
+    assert!(a.text().contains("24 frames of 1400 vertices") && a.text().contains("--max-bake-bytes"), "{}", a.text());
+    assert!(!shot_dir.join("all.usda").exists());
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+/// The hand_wave shot (its anim layer, the 1,400-vertex hand and the
+/// curvenet beside it) copied into `root/shot`; returns that directory.
+fn copy_shot(root: &std::path::Path) -> std::path::PathBuf {
+    let shot_dir = root.join("shot");
+    std::fs::create_dir_all(&shot_dir).unwrap();
+    let fixtures = common::repo().join("fixtures");
+    std::fs::copy(fixtures.join("shots/hand_wave/anim.usda"), shot_dir.join("anim.usda")).unwrap();
+    std::fs::copy(fixtures.join("hand/hand_1k4.usda"), shot_dir.join("hand_1k4.usda")).unwrap();
+    std::fs::copy(fixtures.join("hand/curvenet.usda"), shot_dir.join("curvenet.usda")).unwrap();
+    let shot = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
+    std::fs::write(shot_dir.join("shot.usda"), shot.replace("@../../hand/hand_1k4.usda@", "@./hand_1k4.usda@"))
+        .unwrap();
+    shot_dir
+}
+
+#[test]
+fn a_bake_stops_when_its_client_leaves() {
+    let _serial = one_at_a_time();
+    let root = common::temp_dir("hardening", "bake-leaves");
+    let shot_dir = copy_shot(&root);
+    let server = Server::start(&["--bake-root", root.to_str().unwrap()]);
+    // 50,000 frames (840 MB of points, under the default 1 GiB): about a
+    // minute of solving. The client waits until it runs, then leaves.
+    let body = serde_json::to_vec(&json!({"stage": "shot/shot.usda", "output": "shot/long.usda", "frames": "1-50000"}))
+        .unwrap();
+    let mut s = TcpStream::connect(server.addr).unwrap();
+    let head = format!(
+        "POST /v1/bake HTTP/1.1\r\nHost: {}\r\nConnection: close\r\nContent-Type: application/json\r\n\
+         Content-Length: {}\r\n\r\n",
+        server.addr,
+        body.len()
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    s.write_all(&body).unwrap();
+    let until = |want: f64, limit: Duration| {
+        let t = Instant::now();
+        while server.metric("curvenet_solves_in_flight") != want {
+            assert!(t.elapsed() < limit, "curvenet_solves_in_flight never became {want}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        t.elapsed()
+    };
+    until(1.0, Duration::from_secs(30));
+    std::thread::sleep(Duration::from_millis(500));
+    drop(s);
+    // Stopped at its next chunk of frames (milliseconds), not after the minute.
+    let stopped = until(0.0, Duration::from_secs(10));
+    assert!(!shot_dir.join("long.usda").exists(), "a cancelled bake wrote its output");
+    let left: Vec<_> = std::fs::read_dir(&shot_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("long"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    eprintln!("the bake stopped {stopped:?} after its client left");
     let _ = std::fs::remove_dir_all(&root);
 }
 

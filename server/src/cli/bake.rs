@@ -77,7 +77,9 @@ Exit status: 0 success; 2 bad input, not worth retrying (a stage that breaks the
 contract, a bad frame - non-finite or miscounted control points, a core error -
 named as `frame F, PRIM: ...`, a bad --frames or output extension); 75 an I/O
 failure writing OUTPUT, worth retrying: this includes an output directory that
-does not exist (checked before any work, so a retry costs nothing).
+does not exist (checked before any work, so a retry costs nothing); an OUTPUT
+that can never be written (a file where a directory must be, a directory, a
+name too long) is bad input, 2.
 
 Progress: on a terminal, a line of frames done, frames per second and ETA; else
 one summary line on stderr at the end (meshes, frames, bind and mean solve time
@@ -130,6 +132,17 @@ pub struct FrameRange {
 /// consecutive integers no longer have distinct `f64` time codes.
 const MAX_TIME_CODE: u64 = 1 << 53;
 
+/// `text` quoted for a message, cut to its first 40 characters (a request
+/// may send megabytes where a frame range belongs; the answer need not echo
+/// them).
+pub(super) fn quoted(text: &str) -> String {
+    const SHOWN: usize = 40;
+    match text.char_indices().nth(SHOWN) {
+        None => format!("{text:?}"),
+        Some((cut, _)) => format!("{:?} (cut; {} bytes in all)", &text[..cut], text.len()),
+    }
+}
+
 /// `A-B` or `A`; either bound may be negative (`-5--1`).
 pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
     let compact: String = s.chars().filter(|c| !c.is_whitespace()).collect();
@@ -140,8 +153,9 @@ pub fn parse_frames(s: &str) -> Result<FrameRange, String> {
         Some((i, _)) => (&s[..i], &s[i + 1..]),
         None => (s, s),
     };
-    let int =
-        |x: &str| x.trim().parse::<i64>().map_err(|_| format!("{x:?} is not an integer frame (expected A-B or A)"));
+    let int = |x: &str| {
+        x.trim().parse::<i64>().map_err(|_| format!("{} is not an integer frame (expected A-B or A)", quoted(x)))
+    };
     let (first, last) = (int(a)?, int(b)?);
     // Time codes are doubles: past 2^53 two frames can share one.
     if let Some(x) = [first, last].into_iter().find(|x| x.unsigned_abs() > MAX_TIME_CODE) {
@@ -204,13 +218,35 @@ struct FrameData {
 }
 
 pub fn run(args: &Args) -> CliResult {
-    run_with(args, &mut |w| eprintln!("curvenet: warning: {w}"))
+    run_with(args, &mut |w| eprintln!("curvenet: warning: {w}"), &Bounds::default())
+}
+
+/// What a caller other than the command line bounds a bake by (`POST
+/// /v1/bake`; the command line sets none).
+#[derive(Debug, Clone, Default)]
+pub struct Bounds {
+    /// Largest `frames × vertices × 12` bytes of baked points, all of which
+    /// a bake holds until it writes its layer; over it the bake is refused
+    /// before any binding, with [`CliError::Limit`].
+    pub max_points_bytes: Option<u64>,
+    /// Raised: the bake stops at its next chunk of frames (or before its
+    /// binding, or its write) with [`CliError::Cancelled`], writing nothing.
+    pub cancel: Option<curvenet_core::Cancel>,
+}
+
+impl Bounds {
+    fn check(&self) -> CliResult {
+        match &self.cancel {
+            Some(c) if c.is_cancelled() => Err(CliError::Cancelled),
+            _ => Ok(()),
+        }
+    }
 }
 
 /// [`run`], every warning handed to `warn` as it arises (the command line
 /// prints it on stderr; `POST /v1/bake` returns them in its answer), each
-/// naming the stage or the prim it is about.
-pub fn run_with(args: &Args, warn: &mut dyn FnMut(String)) -> CliResult {
+/// naming the stage or the prim it is about, within `bounds`.
+pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> CliResult {
     let started = Instant::now();
     // Cheap checks first, so a bad command fails before any work.
     LayerFormat::from_path(&args.out).map_err(write_error)?;
@@ -234,6 +270,20 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String)) -> CliResult {
     };
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs, warn)?;
+    if let Some(max) = bounds.max_points_bytes {
+        let vertices: usize = inputs.iter().map(|(m, _, _)| m.projection_points.len()).sum();
+        let bytes = frames.len() as u128 * vertices as u128 * 12;
+        if bytes > max as u128 {
+            return Err(CliError::Limit(format!(
+                "{}: {} frames of {vertices} vertices are {bytes} bytes of points, all held until the layer is \
+                 written; this server's limit is {max} (--max-bake-bytes, CURVENET_MAX_BAKE_BYTES): bake fewer \
+                 frames at once (frames A-B) and stitch the layers",
+                stage.path(),
+                frames.len()
+            )));
+        }
+    }
+    bounds.check()?;
     let adjustments = inputs
         .iter()
         .map(|(_, nets, _)| nets.iter().map(|n| stage.curvenet_adjustments(n)).collect::<Result<Vec<_>, _>>())
@@ -303,6 +353,7 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String)) -> CliResult {
     let mut next = chunks.next().map(|c| read_chunk(&stage, &jobs, c)).transpose()?;
     read_time += t_read.elapsed();
     while let Some(current) = next.take() {
+        bounds.check()?;
         let (solved, read) = std::thread::scope(|s| {
             let solving = s.spawn(|| pool.install(|| solve_chunk(&jobs, &current, batch, &solve_ns, &progress)));
             let t_read = Instant::now();
@@ -319,6 +370,7 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String)) -> CliResult {
         next = read?;
     }
     progress.finish();
+    bounds.check()?;
 
     let t_write = Instant::now();
     let range = (frames[0], frames[frames.len() - 1]);
@@ -386,7 +438,7 @@ pub(super) fn frames(
             && ((r.first as f64) < start || (r.last as f64) > end)
         {
             warn(format!(
-                "{}: --frames {}-{} reaches outside the stage's startTimeCode {start} .. endTimeCode {end}; \
+                "{}: the frames {}-{} reach outside the stage's startTimeCode {start} .. endTimeCode {end}; \
                  frames there hold the nearest authored samples",
                 stage.path(),
                 r.first,
@@ -680,5 +732,10 @@ mod tests {
         );
         assert!(parse_frames("-9007199254740992-0").unwrap_err().contains("more than"));
         assert!(parse_frames("1-100000000").is_err());
+        // A megabyte where a frame belongs is not echoed back whole.
+        let huge = "1".repeat(1 << 20);
+        let e = parse_frames(&huge).unwrap_err();
+        assert!(e.len() < 200 && e.contains("1048576 bytes in all"), "{e}");
+        assert!(parse_frames("x").unwrap_err().starts_with("\"x\" is not"));
     }
 }

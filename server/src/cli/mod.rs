@@ -27,17 +27,35 @@ pub enum CliError {
     /// `serve` stopped at its drain deadline with work cut short (exit 1).
     #[error("{0}")]
     CutShort(String),
+    /// Over a limit the caller set (a service bake's points): bad input for
+    /// this caller, not worth retrying as is.
+    #[error("{0}")]
+    Limit(String),
+    /// The caller withdrew the work (a service bake whose client left, or
+    /// the server's drain deadline).
+    #[error("the bake was cancelled")]
+    Cancelled,
 }
 
 impl CliError {
     pub fn exit_code(&self) -> u8 {
         match self {
             CliError::Usd(curvenet_schema::usd::UsdError::Open { message, .. }) if is_transient(message) => 75,
+            CliError::Io { source, .. } if never_writable(source.kind()) => 2,
             CliError::Io { .. } => 75,
             CliError::CutShort(_) => 1,
+            CliError::Cancelled => 75,
             _ => 2,
         }
     }
+}
+
+/// I/O failures a retry cannot mend: the path itself can never be written
+/// (a file where a directory must be, a directory named as the output, a
+/// name too long or holding a NUL byte).
+fn never_writable(kind: std::io::ErrorKind) -> bool {
+    use std::io::ErrorKind as K;
+    matches!(kind, K::NotADirectory | K::IsADirectory | K::InvalidFilename | K::InvalidInput)
 }
 
 fn is_transient(message: &str) -> bool {
@@ -117,6 +135,12 @@ pub fn deformed_meshes(stage: &curvenet_schema::usd::Stage, purpose: &str) -> Cl
 /// Fails (exit 75, like every failure to write an output) when `out`'s
 /// directory does not exist, before any work is done.
 pub fn check_output_dir(out: &std::path::Path) -> CliResult {
+    // A path naming a directory can never be written as a layer: bad input,
+    // said before any work (not after the bake, at the rename).
+    let text = out.as_os_str().to_string_lossy();
+    if text.ends_with('/') || text.ends_with("/.") || out.is_dir() {
+        return Err(CliError::Input(format!("{}: the output names a directory, not a layer file", out.display())));
+    }
     let dir = match out.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => std::path::Path::new("."),

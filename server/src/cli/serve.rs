@@ -55,6 +55,11 @@ pub struct Args {
     /// bytes, 48 with gradients), e.g. 256MiB.
     #[arg(long, env = "CURVENET_MAX_BATCH_BYTES", default_value = "256MiB", value_parser = parse_bytes)]
     pub max_batch_bytes: u64,
+    /// Largest `POST /v1/bake`, as the points it holds until it writes its
+    /// layer (frames × vertices × 12 bytes), e.g. 1GiB; over it: 422
+    /// limit_exceeded before any work.
+    #[arg(long, env = "CURVENET_MAX_BAKE_BYTES", default_value = "1GiB", value_parser = parse_bytes)]
+    pub max_bake_bytes: u64,
     /// Seconds a request waits in line for a solve permit when all are taken (then 503).
     #[arg(long, env = "CURVENET_QUEUE_TIMEOUT", default_value_t = 2.0)]
     pub queue_timeout: f64,
@@ -158,6 +163,7 @@ pub fn run(args: &Args) -> CliResult {
         },
         queue_timeout,
         max_batch_bytes: args.max_batch_bytes,
+        max_bake_bytes: args.max_bake_bytes,
         connections: curvenet_server::ConnectionLimits {
             header_timeout,
             idle_timeout,
@@ -279,7 +285,8 @@ fn baker() -> Baker {
         ];
         if let Some(f) = &job.frames {
             // Checked here so the answer names the field, not a command-line flag.
-            super::bake::parse_frames(f).map_err(|m| BakeFailure::Input(format!("frames {f:?}: {m}")))?;
+            super::bake::parse_frames(f)
+                .map_err(|m| BakeFailure::Input(format!("frames {}: {m}", super::bake::quoted(f))))?;
             argv.push("--frames".into());
             argv.push(f.into());
         }
@@ -296,8 +303,12 @@ fn baker() -> Baker {
         })?;
         // The warnings go back in the answer, not to the server's stderr.
         let mut warnings = Vec::new();
-        super::bake::run_with(&bake.args, &mut |w| warnings.push(w)).map_err(|e| match e {
+        let bounds =
+            super::bake::Bounds { max_points_bytes: Some(job.max_points_bytes), cancel: Some(job.cancel.clone()) };
+        super::bake::run_with(&bake.args, &mut |w| warnings.push(w), &bounds).map_err(|e| match e {
             CliError::Usd(curvenet_schema::usd::UsdError::Forbidden { .. }) => BakeFailure::Forbidden(e.to_string()),
+            CliError::Limit(m) => BakeFailure::Limit(m),
+            CliError::Cancelled => BakeFailure::Cancelled,
             e if e.exit_code() == 75 => BakeFailure::Retry(e.to_string()),
             e => BakeFailure::Input(e.to_string()),
         })?;

@@ -16,6 +16,7 @@ use std::time::Instant;
 use axum::Json;
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
+use curvenet_core::Cancel;
 use curvenet_schema::wire::{BakeRequest, BakeResponse, ErrorBody};
 
 use crate::error::{Code, ServiceError};
@@ -32,6 +33,13 @@ pub struct BakeJob {
     /// The canonical bake roots: every layer and asset the stage opens
     /// (sublayers, references, payloads) must resolve inside one.
     pub roots: Vec<PathBuf>,
+    /// Largest `frames × vertices × 12` bytes of points the bake may hold
+    /// (`--max-bake-bytes`): over it, [`BakeFailure::Limit`] before any work.
+    pub max_points_bytes: u64,
+    /// Raised when the request goes away (its client disconnected) or at the
+    /// drain deadline: the baker stops at its next chunk of frames, writing
+    /// nothing.
+    pub cancel: Cancel,
 }
 
 /// Why a bake failed.
@@ -43,6 +51,10 @@ pub enum BakeFailure {
     Retry(String),
     /// The stage opens a layer or asset outside the roots: 403 `path_forbidden`.
     Forbidden(String),
+    /// Over `BakeJob::max_points_bytes`: 422 `limit_exceeded`.
+    Limit(String),
+    /// Stopped through `BakeJob::cancel`.
+    Cancelled,
 }
 
 /// Runs a bake to completion (blocking).
@@ -99,6 +111,13 @@ pub fn check_stage(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErro
 /// Checks the output path: its parent resolved inside a root, and the
 /// output itself too when it already exists (e.g. a symlink).
 pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceError> {
+    // As the command line: a path naming a directory is never a layer file.
+    if path.ends_with('/') || path.ends_with("/.") {
+        return Err(ServiceError::new(
+            Code::BakeFailed,
+            format!("output {path}: the output names a directory, not a layer file"),
+        ));
+    }
     let lex = lexical(path, roots).filter(|p| inside(p, roots)).ok_or_else(|| forbidden(path, roots))?;
     let name = lex.file_name().ok_or_else(|| forbidden(path, roots))?.to_owned();
     let parent = lex.parent().ok_or_else(|| forbidden(path, roots))?;
@@ -141,12 +160,17 @@ pub(crate) async fn bake(
 ) -> Result<Response, ServiceError> {
     let req: BakeRequest = parse_json(&bytes)?;
     let roots = state.inner.bake_roots.clone();
+    // Dropped with this handler when the client goes away: the bake stops.
+    let guard = state.inner.bakes.start();
+    let (cancel, max_points_bytes) = (guard.cancel_flag(), state.config().max_bake_bytes);
     let job = blocking(move || {
         Ok(BakeJob {
             stage: check_stage(&req.stage, &roots)?,
             output: check_output(&req.output, &roots)?,
             frames: req.frames,
             roots,
+            max_points_bytes,
+            cancel,
         })
     })
     .await?;
@@ -155,15 +179,23 @@ pub(crate) async fn bake(
     let admission = Admission::one(&state).await?;
     let t = Instant::now();
     let job2 = job.clone();
-    let warnings = blocking(move || {
+    let result = blocking(move || {
         let _admission = admission;
         baker(&job2).map_err(|f| match f {
             BakeFailure::Input(m) => ServiceError::new(Code::BakeFailed, m),
             BakeFailure::Retry(m) => ServiceError::new(Code::Unavailable, m),
             BakeFailure::Forbidden(m) => ServiceError::new(Code::PathForbidden, m),
+            BakeFailure::Limit(m) => ServiceError::new(Code::LimitExceeded, m),
+            // Only the drain deadline leaves anyone to read this.
+            BakeFailure::Cancelled => ServiceError::new(
+                Code::Unavailable,
+                "the server is shutting down and stopped the bake before it wrote anything; retry",
+            ),
         })
     })
-    .await?;
+    .await;
+    guard.finish();
+    let warnings = result?;
     Ok(Json(BakeResponse {
         stage: job.stage.display().to_string(),
         output: job.output.display().to_string(),

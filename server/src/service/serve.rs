@@ -157,6 +157,7 @@ pub async fn run(
         Err(_) => {
             let connections = max - open.available_permits();
             let bindings = state.inner.jobs.cancel_all(Reason::Shutdown);
+            state.inner.bakes.cancel_all(Reason::Shutdown);
             tracing::warn!(connections, bindings, "drain timeout reached: cutting short what is still running");
             Drained::CutShort { connections, bindings }
         }

@@ -28,6 +28,10 @@ pub const DEFAULT_QUEUE_TIMEOUT: Duration = Duration::from_secs(2);
 pub const MAX_LINE_PER_SOLVE: usize = 4;
 /// Default largest answer of a batch, in bytes of f32 data.
 pub const DEFAULT_MAX_BATCH_BYTES: u64 = 256 << 20;
+/// Default `Config::max_bake_bytes`: 1 GiB of points (about 950 frames of
+/// the 94k hand); a bake's peak memory is a few times that (the layer is
+/// built from them at the end).
+pub const DEFAULT_MAX_BAKE_BYTES: u64 = 1 << 30;
 
 /// Everything `curvenet serve` can be configured with.
 #[derive(Debug, Clone)]
@@ -53,6 +57,8 @@ pub struct Config {
     pub queue_timeout: Duration,
     /// Largest answer of one batch: frames × vertices × 12 bytes (48 with gradients).
     pub max_batch_bytes: u64,
+    /// Largest bake: the points it holds until it writes, frames × vertices × 12 bytes.
+    pub max_bake_bytes: u64,
     /// Connection limits and timeouts (headers, bodies, idle keep-alive).
     pub connections: crate::serve::ConnectionLimits,
 }
@@ -70,6 +76,7 @@ impl Default for Config {
             work: WorkLimits::default(),
             queue_timeout: DEFAULT_QUEUE_TIMEOUT,
             max_batch_bytes: DEFAULT_MAX_BATCH_BYTES,
+            max_bake_bytes: DEFAULT_MAX_BAKE_BYTES,
             connections: Default::default(),
         }
     }
@@ -94,6 +101,10 @@ pub(crate) struct Inner {
     pub draining: AtomicBool,
     /// Bindings being computed, cancellable.
     pub jobs: Arc<Jobs>,
+    /// Bakes running (`POST /v1/bake`), apart from the bindings so that the
+    /// binding metrics count bindings only; cancelled alike at the drain
+    /// deadline.
+    pub bakes: Arc<Jobs>,
     /// Requests waiting in line for a solve permit.
     pub waiting: std::sync::atomic::AtomicUsize,
     /// Stages opened in the viewer (`serve --open-stage`), by index.
@@ -131,6 +142,7 @@ impl AppState {
                 metrics,
                 draining: AtomicBool::new(false),
                 jobs: Arc::default(),
+                bakes: Arc::default(),
                 waiting: Default::default(),
                 viewer_stages: Default::default(),
             }),
