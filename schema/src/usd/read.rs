@@ -90,6 +90,15 @@ impl Stage {
         Ok(stage)
     }
 
+    /// The files of every layer the stage composed (its root layer,
+    /// sublayers, and the layers behind references and payloads: all are
+    /// loaded when it is opened), as their identifiers name them; in-memory
+    /// layers (no file) are left out. A writer must not replace one of these
+    /// with what it derived from them.
+    pub fn layer_files(&self) -> Vec<std::path::PathBuf> {
+        self.stage.layer_identifiers().into_iter().map(std::path::PathBuf::from).filter(|p| p.is_file()).collect()
+    }
+
     /// The file this stage was opened from.
     pub fn path(&self) -> &str {
         &self.path

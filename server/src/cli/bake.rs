@@ -268,6 +268,16 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
             .collect::<CliResult<Vec<_>>>()?;
         Stage::open_within(&args.input, &roots)?
     };
+    // Not only the stage file: no layer it reads may be replaced by the bake
+    // (a shot's animation sublayer, the mesh every shot references).
+    if let Some(layer) = stage.layer_files().into_iter().find(|l| same_file(l, &args.out)) {
+        return Err(CliError::Input(format!(
+            "{}: the output would replace {}, a layer of the stage {}",
+            args.out.display(),
+            layer.display(),
+            args.input.display()
+        )));
+    }
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs, warn)?;
     if let Some(max) = bounds.max_points_bytes {
