@@ -217,15 +217,7 @@ fn bad_commands_exit_2_and_a_missing_output_directory_exits_75() {
     assert_eq!(dir_names(&dir), ["afile", "d.usda"]);
     // A layer the stage reads is never replaced: the shot's animation
     // sublayer, the mesh layer (copies, so a failure harms no fixture).
-    let shot_dir = dir.join("shot");
-    std::fs::create_dir_all(&shot_dir).unwrap();
-    let fixtures = common::repo().join("fixtures");
-    std::fs::copy(fixtures.join("shots/hand_wave/anim.usda"), shot_dir.join("anim.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/hand_1k4.usda"), shot_dir.join("hand_1k4.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/curvenet.usda"), shot_dir.join("curvenet.usda")).unwrap();
-    let text = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
-    std::fs::write(shot_dir.join("shot.usda"), text.replace("@../../hand/hand_1k4.usda@", "@./hand_1k4.usda@"))
-        .unwrap();
+    let shot_dir = common::copy_shot(&dir);
     let before: Vec<Vec<u8>> =
         ["anim.usda", "hand_1k4.usda"].iter().map(|f| std::fs::read(shot_dir.join(f)).unwrap()).collect();
     for (i, f) in ["anim.usda", "hand_1k4.usda"].iter().enumerate() {

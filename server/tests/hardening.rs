@@ -845,7 +845,7 @@ fn the_small_things() {
     assert!(a.text().contains("point_indices[1] repeats vertex 7"), "{}", a.text());
 
     // Bakes: a copy of the shipped shot inside the root.
-    let shot_dir = copy_shot(&root);
+    let shot_dir = common::copy_shot(&root);
     let fixtures = common::repo().join("fixtures");
     let shot = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
     // Its hand layer as an absolute path outside the root: refused.
@@ -909,26 +909,11 @@ fn the_small_things() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
-/// The hand_wave shot (its anim layer, the 1,400-vertex hand and the
-/// curvenet beside it) copied into `root/shot`; returns that directory.
-fn copy_shot(root: &std::path::Path) -> std::path::PathBuf {
-    let shot_dir = root.join("shot");
-    std::fs::create_dir_all(&shot_dir).unwrap();
-    let fixtures = common::repo().join("fixtures");
-    std::fs::copy(fixtures.join("shots/hand_wave/anim.usda"), shot_dir.join("anim.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/hand_1k4.usda"), shot_dir.join("hand_1k4.usda")).unwrap();
-    std::fs::copy(fixtures.join("hand/curvenet.usda"), shot_dir.join("curvenet.usda")).unwrap();
-    let shot = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
-    std::fs::write(shot_dir.join("shot.usda"), shot.replace("@../../hand/hand_1k4.usda@", "@./hand_1k4.usda@"))
-        .unwrap();
-    shot_dir
-}
-
 #[test]
 fn a_bake_stops_when_its_client_leaves() {
     let _serial = one_at_a_time();
     let root = common::temp_dir("hardening", "bake-leaves");
-    let shot_dir = copy_shot(&root);
+    let shot_dir = common::copy_shot(&root);
     let server = Server::start(&["--bake-root", root.to_str().unwrap()]);
     // 50,000 frames (840 MB of points, under the default 1 GiB): about a
     // minute of solving. The client waits until it runs, then leaves.

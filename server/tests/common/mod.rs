@@ -120,3 +120,19 @@ pub fn skinning_transforms(
     }
     out
 }
+
+/// The hand_wave shot (its anim layer, the 1,400-vertex hand and the
+/// curvenet beside it) copied into `root/shot`; returns that directory.
+#[allow(dead_code)]
+pub fn copy_shot(root: &std::path::Path) -> std::path::PathBuf {
+    let shot_dir = root.join("shot");
+    std::fs::create_dir_all(&shot_dir).unwrap();
+    let fixtures = repo().join("fixtures");
+    std::fs::copy(fixtures.join("shots/hand_wave/anim.usda"), shot_dir.join("anim.usda")).unwrap();
+    std::fs::copy(fixtures.join("hand/hand_1k4.usda"), shot_dir.join("hand_1k4.usda")).unwrap();
+    std::fs::copy(fixtures.join("hand/curvenet.usda"), shot_dir.join("curvenet.usda")).unwrap();
+    let shot = std::fs::read_to_string(fixtures.join("shots/hand_wave/shot.usda")).unwrap();
+    std::fs::write(shot_dir.join("shot.usda"), shot.replace("@../../hand/hand_1k4.usda@", "@./hand_1k4.usda@"))
+        .unwrap();
+    shot_dir
+}
