@@ -679,7 +679,7 @@ async fn bake_paths_must_stay_inside_the_roots() {
             Ok(vec![format!("{}: a warning", job.stage.display())])
         })
     };
-    let state = AppState::new(Config { bake_roots: vec![root.clone()], ..test_config() }, Some(baker)).unwrap();
+    let state = AppState::new(Config { bake_roots: vec![root.clone()], ..test_config() }, Some(baker.clone())).unwrap();
     let app = app(state);
     let bake = |stage: String, output: String| post_json("/v1/bake", &json!({"stage": stage, "output": output}));
     let r = root.display().to_string();
@@ -711,6 +711,28 @@ async fn bake_paths_must_stay_inside_the_roots() {
     // The baker's warnings are the answer's.
     let answer: Value = serde_json::from_slice(&body).unwrap();
     assert_eq!(answer["warnings"], json!([format!("{}: a warning", job.stage.display())]));
+    // A root configured through a symlink takes absolute paths given
+    // through that name (they resolve to the canonical root).
+    #[cfg(unix)]
+    {
+        let link = std::env::temp_dir().join(format!("curvenet-service-bake-link-{}", std::process::id()));
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&root, &link).unwrap();
+        let linked = curvenet_server::app(
+            AppState::new(Config { bake_roots: vec![link.clone()], ..test_config() }, Some(baker.clone())).unwrap(),
+        );
+        let l = link.display().to_string();
+        let (status, _, body) =
+            send(&linked, bake(format!("{l}/shots/shot.usda"), format!("{l}/shots/linked.usda"))).await;
+        assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+        let job = jobs.lock().unwrap().last().unwrap().clone();
+        assert_eq!(job.stage, canonical.join("shots/shot.usda"));
+        assert_eq!(job.output, canonical.join("shots/linked.usda"));
+        // Its name does not widen the roots: outside stays outside.
+        let (status, _, _) = send(&linked, bake(format!("{l}/../etc/passwd"), format!("{l}/x.usda"))).await;
+        assert_eq!(status, StatusCode::FORBIDDEN);
+        let _ = std::fs::remove_file(&link);
+    }
     // No roots: baking is refused.
     let app = app_no_roots();
     let (status, _, body) = send(&app, bake(format!("{r}/shots/shot.usda"), format!("{r}/out.usda"))).await;

@@ -94,9 +94,12 @@ fn inside(path: &Path, roots: &[PathBuf]) -> bool {
     roots.iter().any(|r| path.starts_with(r))
 }
 
-/// Checks the stage path: inside a root before and after canonicalisation, and existing.
-pub fn check_stage(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceError> {
-    let lex = lexical(path, roots).filter(|p| inside(p, roots)).ok_or_else(|| forbidden(path, roots))?;
+/// Checks the stage path: inside a root before (`roots`, canonical, or
+/// `names`, the roots as configured) and after canonicalisation (`roots`),
+/// and existing.
+pub fn check_stage(path: &str, roots: &[PathBuf], names: &[PathBuf]) -> Result<PathBuf, ServiceError> {
+    let lex =
+        lexical(path, roots).filter(|p| inside(p, roots) || inside(p, names)).ok_or_else(|| forbidden(path, roots))?;
     let canonical = std::fs::canonicalize(&lex)
         .map_err(|e| ServiceError::new(Code::StageNotFound, format!("stage {path}: {e}")))?;
     if !inside(&canonical, roots) {
@@ -110,7 +113,7 @@ pub fn check_stage(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErro
 
 /// Checks the output path: its parent resolved inside a root, and the
 /// output itself too when it already exists (e.g. a symlink).
-pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceError> {
+pub fn check_output(path: &str, roots: &[PathBuf], names: &[PathBuf]) -> Result<PathBuf, ServiceError> {
     // As the command line: a path naming a directory is never a layer file.
     if path.ends_with('/') || path.ends_with("/.") {
         return Err(ServiceError::new(
@@ -118,7 +121,8 @@ pub fn check_output(path: &str, roots: &[PathBuf]) -> Result<PathBuf, ServiceErr
             format!("output {path}: the output names a directory, not a layer file"),
         ));
     }
-    let lex = lexical(path, roots).filter(|p| inside(p, roots)).ok_or_else(|| forbidden(path, roots))?;
+    let lex =
+        lexical(path, roots).filter(|p| inside(p, roots) || inside(p, names)).ok_or_else(|| forbidden(path, roots))?;
     let name = lex.file_name().ok_or_else(|| forbidden(path, roots))?.to_owned();
     let parent = lex.parent().ok_or_else(|| forbidden(path, roots))?;
     // A directory that does not exist (yet) is worth retrying, as `curvenet
@@ -160,13 +164,17 @@ pub(crate) async fn bake(
 ) -> Result<Response, ServiceError> {
     let req: BakeRequest = parse_json(&bytes)?;
     let roots = state.inner.bake_roots.clone();
+    // The roots as configured (absolute, symlinks kept): a path given
+    // through a root's own name passes the lexical check, then resolves, as
+    // every path does, against the canonical roots.
+    let names: Vec<PathBuf> = state.config().bake_roots.iter().filter_map(|r| std::path::absolute(r).ok()).collect();
     // Dropped with this handler when the client goes away: the bake stops.
     let guard = state.inner.bakes.start();
     let (cancel, max_points_bytes) = (guard.cancel_flag(), state.config().max_bake_bytes);
     let job = blocking(move || {
         Ok(BakeJob {
-            stage: check_stage(&req.stage, &roots)?,
-            output: check_output(&req.output, &roots)?,
+            stage: check_stage(&req.stage, &roots, &names)?,
+            output: check_output(&req.output, &roots, &names)?,
             frames: req.frames,
             roots,
             max_points_bytes,
