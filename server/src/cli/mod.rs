@@ -137,8 +137,7 @@ pub fn deformed_meshes(stage: &curvenet_schema::usd::Stage, purpose: &str) -> Cl
 pub fn check_output_dir(out: &std::path::Path) -> CliResult {
     // A path naming a directory can never be written as a layer: bad input,
     // said before any work (not after the bake, at the rename).
-    let text = out.as_os_str().to_string_lossy();
-    if text.ends_with('/') || text.ends_with("/.") || out.is_dir() {
+    if curvenet_server::names_a_directory(&out.as_os_str().to_string_lossy()) || out.is_dir() {
         return Err(CliError::Input(format!("{}: the output names a directory, not a layer file", out.display())));
     }
     let dir = match out.parent() {

@@ -111,11 +111,19 @@ pub fn check_stage(path: &str, roots: &[PathBuf], names: &[PathBuf]) -> Result<P
     Ok(canonical)
 }
 
+/// Whether an output path names a directory by its spelling (a trailing `/`
+/// or `/.`): never a layer file. `curvenet bake` and `POST /v1/bake` both
+/// refuse it before any work; the service must look at the text, since the
+/// canonical path it hands the bake has lost the slash.
+pub fn names_a_directory(path: &str) -> bool {
+    path.ends_with('/') || path.ends_with("/.")
+}
+
 /// Checks the output path: its parent resolved inside a root, and the
 /// output itself too when it already exists (e.g. a symlink).
 pub fn check_output(path: &str, roots: &[PathBuf], names: &[PathBuf]) -> Result<PathBuf, ServiceError> {
     // As the command line: a path naming a directory is never a layer file.
-    if path.ends_with('/') || path.ends_with("/.") {
+    if names_a_directory(path) {
         return Err(ServiceError::new(
             Code::BakeFailed,
             format!("output {path}: the output names a directory, not a layer file"),
