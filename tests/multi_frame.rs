@@ -185,7 +185,14 @@ fn check(rel: &str) {
     assert!(own_rest.len() >= 3 && !plain.is_empty(), "{own_rest:?} {plain:?}");
     for k in [2, 4, 8, 16, 32] {
         check_groups(rel, &deformer, &frames, &single, &own_rest, k);
+        let before = curvenet_core::counters::lane_row_groups();
         check_groups(rel, &deformer, &frames, &single, &plain, k);
+        // Plain groups of 2, 4, 8 and 16 made their rows lane by lane (and
+        // still gave the single frames' bits); other sizes, frame by frame.
+        let made = curvenet_core::counters::lane_row_groups() - before;
+        if k != 32 {
+            assert!(made >= 2, "{rel}: groups of {k} made their rows lane by lane {made} times");
+        }
     }
 }
 
@@ -223,4 +230,105 @@ fn a_bad_frame_of_a_group_is_named_by_its_index() {
     // Fewer outputs than frames.
     let e = deformer.frames(&frames, &mut outs[..3]).unwrap_err();
     assert!(matches!(e.error, Error::CountMismatch { what: "frame outputs", expected: 9, got: 3 }), "{e}");
+}
+
+/// FNV-1a of a name, so that every stage draws its own poses.
+fn name_seed(rel: &str) -> u64 {
+    rel.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// Seeded random poses on every corpus stage and two more hands, in groups
+/// of every fixed-width size (whose constraint rows are made lane by lane,
+/// `Binding::lanes_rows`): every frame gives its single solve's bits. A
+/// pose is a random rotation and translation of the whole curvenet, a
+/// random smooth warp, and per-point noise of up to 0.3% of the diagonal.
+/// Replay a failure with the seed it prints: `CURVENET_GROUP_SEED=<seed>`.
+/// Then a group holding a collapsed curvenet fails as that frame alone
+/// does, naming it.
+#[test]
+fn random_poses_in_groups_match_single_frames_on_every_corpus_stage() {
+    use curvenet_core::draft::SplitMix64;
+    let base = std::env::var("CURVENET_GROUP_SEED").ok().and_then(|s| s.parse::<u64>().ok()).unwrap_or(0x19_5eed);
+    let mut stages: Vec<String> = std::fs::read_dir(curvenet_e2e::fixtures_dir().join("corpus"))
+        .unwrap()
+        .map(|e| format!("corpus/{}", e.unwrap().file_name().to_string_lossy()))
+        .collect();
+    stages.sort();
+    assert!(stages.len() >= 8, "{stages:?}");
+    stages.extend(["hand/hand_1k4.usda".to_string(), "hand/hand_closed.usda".to_string()]);
+    for rel in &stages {
+        let seed = base ^ name_seed(rel);
+        let b = bind_fixture(rel);
+        let d = b.diagonal();
+        let n = b.deformer.n_vertices();
+        let mut rng = SplitMix64::new(seed);
+        let poses: Vec<Vec<Vec<[f64; 3]>>> = (0..8)
+            .map(|_| {
+                let axis = [rng.signed(), rng.signed(), rng.signed() + 0.1];
+                let len = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+                let axis = glam::DVec3::from_array(axis) / len;
+                let rot = glam::DMat3::from_axis_angle(axis, rng.range(-1.0, 1.0));
+                let shift = glam::DVec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.2 * d;
+                let (wave, freq) = (rng.range(0.0, 0.04) * d, rng.range(1.0, 6.0) / d);
+                b.nets
+                    .iter()
+                    .map(|net| {
+                        net.pool
+                            .iter()
+                            .map(|&p| {
+                                let p = glam::DVec3::from_array(p);
+                                let warp = glam::DVec3::new(0.0, (p.x * freq).sin(), (p.y * freq).cos()) * wave;
+                                let noise = glam::DVec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.003 * d;
+                                (rot * (p + warp) + shift + noise).to_array()
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
+            poses.iter().map(|p| p.iter().map(|x| Some(x.as_slice())).collect()).collect();
+        let frames: Vec<Frame<'_>> = posed.iter().map(|p| Frame { posed: p, ..Default::default() }).collect();
+        let single: Vec<Vec<[f64; 3]>> = frames
+            .iter()
+            .map(|f| {
+                let mut out = vec![[0.0; 3]; n];
+                b.deformer
+                    .frame(f, &mut out, None)
+                    .unwrap_or_else(|e| panic!("{rel} (seed {seed}): a pose failed: {e}"));
+                out
+            })
+            .collect();
+        for k in [2usize, 4, 8, 16] {
+            let before = curvenet_core::counters::lane_row_groups();
+            let picked: Vec<usize> = (0..frames.len()).cycle().skip(k / 2).take(2 * k).collect();
+            let group: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
+            let mut points = vec![vec![[f64::NAN; 3]; n]; picked.len()];
+            let mut outs: Vec<FrameOut<'_>> =
+                points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+            for (g, o) in group.chunks(k).zip(outs.chunks_mut(k)) {
+                b.deformer.frames(g, o).unwrap_or_else(|e| panic!("{rel} (seed {seed}): groups of {k}: {e}"));
+            }
+            for (j, &i) in picked.iter().enumerate() {
+                assert!(
+                    same_bits(points[j].as_flattened(), single[i].as_flattened()),
+                    "{rel}: pose {i} in groups of {k} differs from its single frame by {:e} (relative); \
+                     replay with CURVENET_GROUP_SEED={base}",
+                    relative(points[j].as_flattened(), single[i].as_flattened())
+                );
+            }
+            let made = curvenet_core::counters::lane_row_groups() - before;
+            assert!(made >= 2, "{rel}: groups of {k} made their rows lane by lane {made} times");
+        }
+        // A curvenet collapsed to one point in frame 5 of a group of 8.
+        let collapsed: Vec<Vec<[f64; 3]>> = b.nets.iter().map(|net| vec![net.pool[0]; net.pool.len()]).collect();
+        let bad: Vec<Option<&[[f64; 3]]>> = collapsed.iter().map(|x| Some(x.as_slice())).collect();
+        let mut group: Vec<Frame<'_>> = frames.clone();
+        group[5] = Frame { posed: &bad, ..Default::default() };
+        let alone = b.deformer.frame(&group[5], &mut vec![[0.0; 3]; n], None).unwrap_err();
+        let mut points = vec![vec![[0.0; 3]; n]; 8];
+        let mut outs: Vec<FrameOut<'_>> = points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+        let e = b.deformer.frames(&group, &mut outs).unwrap_err();
+        assert_eq!((e.frame, &e.error), (5, &alone), "{rel}: a collapsed curvenet in a group");
+    }
 }

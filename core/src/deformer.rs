@@ -377,6 +377,7 @@ impl Deformer {
         let mut s = self.take();
         let result = (|| {
             self.stage(frame, &mut s, out.len())?;
+            self.binding.deform_rows(&mut s.ws)?;
             self.solve_staged(frame, &mut s, out, gradients)
         })();
         self.give(s);
@@ -387,10 +388,13 @@ impl Deformer {
     /// into `outs[i]` (points and, when given, gradients), exactly as
     /// [`Self::frame`] would, in one sweep of each triangular solve for up
     /// to [`MAX_BATCH_FRAMES`] frames (more are solved in consecutive
-    /// groups of that many). Each frame's curvenet and constraint rows are
-    /// made frame by frame in its own workspace, then copied into the
-    /// group's block ([`crate::solve`]'s `Lanes`: rows in the factor's
-    /// order, every frame's columns side by side). The harmonic right-hand
+    /// groups of that many). Each frame's samples are made in its own
+    /// workspace; its curvenet and constraint rows are made in the group's
+    /// block ([`crate::solve`]'s `Lanes`: rows in the factor's order, every
+    /// frame's columns side by side), all frames at once, one per vector
+    /// lane, for groups of 2, 4, 8 or 16 frames in the projection pose
+    /// (`curvenet/lanes.rs`); otherwise frame by frame in the
+    /// workspaces and copied in. The harmonic right-hand
     /// sides (9 columns per frame) are built there by one pass over `B`,
     /// solved in one sweep, the Poisson ones (3 per frame) built by one
     /// pass over `B` and the gradient operator and solved in one sweep, so
@@ -451,15 +455,20 @@ impl Deformer {
             // A group of one solves in its own workspace, as `frame` does:
             // the interleaved block would only be a copy of it.
             let out = &mut outs[0];
+            let s = &mut scratches[0];
             return self
-                .solve_staged(&frames[0], &mut scratches[0], out.points, out.gradients.as_deref_mut())
+                .binding
+                .deform_rows(&mut s.ws)
+                .and_then(|()| self.solve_staged(&frames[0], s, out.points, out.gradients.as_deref_mut()))
                 .map_err(|e| (0, e));
         }
-        // Every frame's constraint rows into its lane; the harmonic
-        // right-hand sides and solve, 9 columns per frame; then the Poisson
-        // ones, 3 per frame. f_v comes back to the workspaces of the frames
-        // whose output needs it (gradients, or blend shapes after the solve;
-        // the lanes add the frames with their own rest pose), x_v to every one.
+        // Every frame's constraint rows into its lane (made there, all
+        // frames at once, when the group allows it; else frame by frame and
+        // copied in); the harmonic right-hand sides and solve, 9 columns
+        // per frame; then the Poisson ones, 3 per frame. f_v (and f_c) come
+        // back to the workspaces of the frames whose output needs it
+        // (gradients, or blend shapes after the solve; the lanes add the
+        // frames with their own rest pose), x_v to every one.
         let mut wants_fv = 0u32;
         for (i, (frame, out)) in frames.iter().zip(outs.iter()).enumerate() {
             if out.gradients.is_some() || self.after_weights(frame).is_some() {
@@ -468,7 +477,12 @@ impl Deformer {
         }
         let lanes = &mut batch.lanes;
         self.binding.lanes_start(lanes, k);
-        self.binding.lanes_load(lanes, scratches);
+        if !self.binding.lanes_rows(lanes, scratches, wants_fv) {
+            for (i, s) in scratches.iter_mut().enumerate() {
+                self.binding.deform_rows(&mut s.ws).map_err(|e| (i, e))?;
+            }
+            self.binding.lanes_load(lanes, scratches);
+        }
         self.binding.lanes_solve_harmonic(lanes, scratches, wants_fv);
         self.binding.lanes_solve_poisson(lanes, scratches);
         for (i, ((frame, out), s)) in frames.iter().zip(outs.iter_mut()).zip(scratches.iter_mut()).enumerate() {
@@ -494,10 +508,12 @@ impl Deformer {
     }
 
     /// A frame's work before its solves, into `s`: checks, blend shapes in
-    /// the `before` mode, the rig's skinning, then the binding's curvenet
-    /// deformation and constraint rows (the harmonic right-hand side is
-    /// built by [`Self::solve_staged`], or in a group's block). `n_out`:
-    /// the length of the caller's output points.
+    /// the `before` mode, the rig's skinning, then the binding's checks and
+    /// curvenet samples (`Binding::deform_samples`). The constraint rows
+    /// come next: `Binding::deform_rows` for one frame, or a group's
+    /// `Binding::lanes_rows` (the harmonic right-hand side is built by
+    /// [`Self::solve_staged`], or in a group's block). `n_out`: the length
+    /// of the caller's output points.
     fn stage(&self, frame: &Frame<'_>, s: &mut Scratch, n_out: usize) -> Result<()> {
         let n = self.binding.n_vertices();
         if let Some(w) = frame.blend_shape_weights
@@ -611,7 +627,7 @@ impl Deformer {
         } else {
             frame.posed
         };
-        self.binding.deform_constraints(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
+        self.binding.deform_samples(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
     }
 
     /// A frame's work after its solves: the output points (and gradients),

@@ -12,6 +12,7 @@ use glam::{DMat3, DVec3};
 
 use crate::adjust::{Adjustment, UNCLAIMED};
 use crate::binding::{Binding, Corner, triangle_frame};
+use crate::curvenet::lanes::{LaneScratch, SlotRows, slot_rows};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
 use crate::mesh::check_finite;
@@ -149,6 +150,15 @@ impl Binding {
     /// deformation, then f_c (in `ws.grad9[n_unknowns..]`) and x_c (in
     /// `ws.xc`). `n_out`: the length of the caller's output.
     pub(crate) fn deform_constraints(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
+        self.deform_samples(input, ws, n_out)?;
+        self.deform_rows(ws)
+    }
+
+    /// The first part of [`Self::deform_constraints`]: checks, the rest
+    /// pose, Curvenet Adjustments, and every curvenet's samples (in
+    /// `ws.samples`). [`Self::deform_rows`] (one frame) or
+    /// [`Self::lanes_rows`] (a group) makes the rows from them.
+    pub(crate) fn deform_samples(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch {
@@ -206,6 +216,17 @@ impl Binding {
                     (None, true) => ws.samples[k].copy_from_slice(&ws.rest_samples[k]),
                 }
             }
+        }
+        ws.rest_mode = rest_mode;
+        Ok(())
+    }
+
+    /// The second part of [`Self::deform_constraints`], from the samples:
+    /// scaled frames, deformation gradients, then f_c (in
+    /// `ws.grad9[n_unknowns..]`) and x_c (in `ws.xc`).
+    pub(crate) fn deform_rows(&self, ws: &mut Workspace) -> Result<()> {
+        let rest_mode = ws.rest_mode;
+        for (k, layout) in self.layouts.iter().enumerate() {
             scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k])?;
             let rest_frames = if rest_mode { &ws.rest_frames[k][..] } else { layout.neutral_frames() };
             deformation_gradients_into(layout, rest_frames, &ws.frames[k], &mut ws.gradients[k])?;
@@ -213,7 +234,6 @@ impl Binding {
             let slots = range.slot as usize..range.slot as usize + layout.constraints().len();
             constraint_gradients_into(layout.constraints(), &ws.gradients[k], &mut ws.slot_f[slots])?;
         }
-        ws.rest_mode = rest_mode;
         let (sample_offset, crossing_offset) = if rest_mode {
             (&ws.rest_sample_offset[..], &ws.rest_crossing_offset[..])
         } else {
@@ -476,6 +496,9 @@ pub(crate) struct Lanes {
     xc: Vec<f64>,
     /// 3 per frame: the unknowns' Poisson right-hand side, then x_v.
     pos: Vec<f64>,
+    /// The curvenet's per-segment values while [`Binding::lanes_rows`]
+    /// makes the constraint rows.
+    scratch: LaneScratch,
 }
 
 /// A frame of a group ([`Lanes`]) holds its workspace.
@@ -553,6 +576,11 @@ impl Lanes {
     }
 }
 
+/// Whether groups of `k` frames have fixed-width kernels ([`Binding::lanes_rows`]).
+fn lanes_fixed(k: usize) -> bool {
+    matches!(k, 2 | 4 | 8 | 16)
+}
+
 /// The mask of lanes `0..k`.
 fn all_lanes(k: usize) -> u32 {
     if k >= 32 { u32::MAX } else { (1 << k) - 1 }
@@ -580,6 +608,9 @@ impl Binding {
         lanes.grad.resize(grad, 0.0);
         lanes.xc.resize(xc, 0.0);
         lanes.pos.resize(pos, 0.0);
+        if lanes_fixed(k) {
+            lanes.scratch.size(&self.layouts, k);
+        }
     }
 
     /// The lengths of a group's `grad`, `xc` and `pos` for `k` frames: 9
@@ -592,9 +623,126 @@ impl Binding {
 
     /// Heap bytes of a group's block ([`Lanes`], as [`Self::lanes_start`]
     /// sizes it) for `k` frames: 12 values per frame for every unknown and
-    /// every constraint row.
+    /// every constraint row, and the curvenet's per-segment scratch of
+    /// [`Self::lanes_rows`] when it runs for `k`.
     pub(crate) fn lanes_bytes(&self, k: usize) -> usize {
-        self.lanes_lens(k).iter().sum::<usize>() * std::mem::size_of::<f64>()
+        let mut scratch = LaneScratch::default();
+        if lanes_fixed(k) {
+            scratch.size(&self.layouts, k);
+        }
+        self.lanes_lens(k).iter().sum::<usize>() * std::mem::size_of::<f64>() + scratch.heap_bytes()
+    }
+
+    /// Every frame's constraint rows (f_c and x_c) made in its lane of the
+    /// block, as [`Self::deform_rows`] makes them in a workspace (the same
+    /// operations in the same order, so the same bits), from the samples
+    /// [`Self::deform_samples`] left in each workspace; x_c then goes out to
+    /// every workspace (the output reads it) and f_c to those of the frames
+    /// in `mask` (their gradients read it). Runs for groups of 2, 4, 8 or 16
+    /// frames in the projection pose (no frame with its own rest pose);
+    /// returns false,
+    /// having changed no workspace, for any other group, and for a group
+    /// some frame of which [`Self::deform_rows`] would refuse: the caller
+    /// then makes the rows frame by frame and loads them
+    /// ([`Self::lanes_load`]), which names the frame and the error.
+    pub(crate) fn lanes_rows<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S], mask: u32) -> bool {
+        use crate::simd::Simd;
+        let k = lanes.lanes;
+        if !lanes_fixed(k) || items.len() != k || own_rest_lanes(items) != 0 {
+            return false;
+        }
+        let made = match Simd::detect() {
+            // SAFETY: `Simd::detect` found the feature on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => unsafe { self.lanes_rows_avx512(lanes, items) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => unsafe { self.lanes_rows_avx2(lanes, items) },
+            Simd::Baseline => self.lanes_rows_any(lanes, items),
+        };
+        if !made {
+            return false;
+        }
+        #[cfg(feature = "counters")]
+        crate::counters::lane_rows_made();
+        let (k, u) = (lanes.lanes, self.n_unknowns());
+        Lanes::copy::<3, S>(items, &mut lanes.xc, all_lanes(k), false, |ws| &mut ws.xc);
+        if mask != 0 {
+            Lanes::copy::<9, S>(items, &mut lanes.grad[u * 9 * k..], mask, false, |ws| &mut ws.grad9[u..]);
+        }
+        true
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn lanes_rows_avx512<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) -> bool {
+        self.lanes_rows_any(lanes, items)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn lanes_rows_avx2<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) -> bool {
+        self.lanes_rows_any(lanes, items)
+    }
+
+    #[inline(always)]
+    fn lanes_rows_any<S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) -> bool {
+        match lanes.lanes {
+            2 => self.lanes_rows_fixed::<2, S>(lanes, items),
+            4 => self.lanes_rows_fixed::<4, S>(lanes, items),
+            8 => self.lanes_rows_fixed::<8, S>(lanes, items),
+            16 => self.lanes_rows_fixed::<16, S>(lanes, items),
+            _ => false,
+        }
+    }
+
+    /// [`Self::lanes_rows`] for `K` frames: the slot rows curvenet by
+    /// curvenet ([`crate::curvenet::lanes`]), then the crossing rows as
+    /// [`Self::deform_rows`] interpolates them, then the finiteness check.
+    #[inline(always)]
+    fn lanes_rows_fixed<const K: usize, S: HasWorkspace>(&self, lanes: &mut Lanes, items: &mut [S]) -> bool {
+        let u = self.n_unknowns();
+        let mut wss: [Option<&Workspace>; K] = [None; K];
+        for (w, item) in wss.iter_mut().zip(items.iter_mut()) {
+            *w = Some(item.workspace());
+        }
+        let Lanes { grad, xc, scratch, .. } = lanes;
+        let (grad, _) = grad[u * 9 * K..].as_chunks_mut::<K>();
+        let (xc, _) = xc.as_chunks_mut::<K>();
+        for (k, layout) in self.layouts.iter().enumerate() {
+            let samples: [&[[f64; 3]]; K] = std::array::from_fn(|i| wss[i].map_or(&[][..], |w| &w.samples[k][..]));
+            let rows = SlotRows {
+                first_slot: self.nets[k].slot as usize,
+                first_sample: self.nets[k].sample as usize,
+                slot_sample: &self.slot_sample,
+                sample_offset: &self.sample_offset,
+                grad: &mut *grad,
+                xc: &mut *xc,
+            };
+            if slot_rows(layout, &samples, scratch, rows).is_err() {
+                return false;
+            }
+        }
+        for (c, row) in self.crossings.iter().enumerate() {
+            let r = self.n_slots + c;
+            let (lo, hi, t) = (row.lo as usize, row.hi as usize, row.t);
+            let o = self.crossing_offset[c];
+            let mut f = [[0.0; K]; 9];
+            for (e, f) in f.iter_mut().enumerate() {
+                let (a, b) = (grad[lo * 9 + e], grad[hi * 9 + e]);
+                *f = std::array::from_fn(|i| a[i] + t * (b[i] - a[i]));
+                grad[r * 9 + e] = *f;
+            }
+            for comp in 0..3 {
+                let (a, b) = (xc[lo * 3 + comp], xc[hi * 3 + comp]);
+                xc[r * 3 + comp] = std::array::from_fn(|i| {
+                    let lerp = a[i] * (1.0 - t) + b[i] * t;
+                    lerp + ((f[comp * 3][i] * o.x + f[comp * 3 + 1][i] * o.y) + f[comp * 3 + 2][i] * o.z)
+                });
+            }
+        }
+        let n_rows = self.n_constraints();
+        xc[..n_rows * 3].iter().all(|x| x.iter().all(|v| v.is_finite()))
     }
 
     /// Every frame's constraint rows (f_c and x_c, from

@@ -96,9 +96,9 @@ impl ScaledFrame {
 
 /// Normals and widths of one curve end, per curve side (index `Side as usize`).
 #[derive(Debug, Clone, Copy)]
-struct EndFrame {
-    normal: [DVec3; 2],
-    width: [f64; 2],
+pub(crate) struct EndFrame {
+    pub(crate) normal: [DVec3; 2],
+    pub(crate) width: [f64; 2],
 }
 
 /// What the frames need of a curvenet's analysis: its sampling plan, its
@@ -164,8 +164,9 @@ pub fn frames_into(plan: FramePlan<'_>, samples: &[[f64; 3]], out: &mut [[Scaled
             continue;
         }
         let segs = sampling.curve_segments(c);
-        let start = start.map(|(f, k)| end_frame(plan.fans, f, k, true, out)).transpose()?;
-        let end = end.map(|(f, k)| end_frame(plan.fans, f, k, false, out)).transpose()?;
+        let segment = |s: usize| (tangent(out, s), out[s][0].scale[0]);
+        let start = start.map(|(f, k)| end_frame(plan.fans, f, k, true, segment)).transpose()?;
+        let end = end.map(|(f, k)| end_frame(plan.fans, f, k, false, segment)).transpose()?;
         // Transport the normals along the curve from the intersection end,
         // keeping the transported (not yet renormalised) normals in `out`.
         let theta = match (start, end) {
@@ -246,18 +247,8 @@ fn isolated_curve_frames(
     segs: std::ops::Range<usize>,
     out: &mut [[ScaledFrame; 2]],
 ) {
-    let pts = || curve_samples.iter().map(|&i| v3(samples[i as usize]));
-    let Some(o) = pts().next() else { return };
-    let mut area = DVec3::ZERO;
-    let mut prev = DVec3::ZERO;
-    for p in pts() {
-        area += prev.cross(p - o);
-        prev = p - o;
-    }
     let length: f64 = segs.clone().map(|s| out[s][0].scale[0]).sum();
-    if !(area.length() > 1e-6 * length * length) {
-        return;
-    }
+    let Some(area) = isolated_curve_area(samples, curve_samples, length) else { return };
     for s in segs {
         let t = v3(out[s][0].tangent);
         let Some(n) = orthonormalize(area, t) else { continue };
@@ -268,6 +259,21 @@ fn isolated_curve_frames(
     }
 }
 
+/// The vector area `N` of an isolated curve's sample polygon (closed by its
+/// chord), `None` when the curve is (numerically) straight: shorter than
+/// `1e-6 length²` for the curve's `length` (the sum of its segments').
+pub(crate) fn isolated_curve_area(samples: &[[f64; 3]], curve_samples: &[u32], length: f64) -> Option<DVec3> {
+    let pts = || curve_samples.iter().map(|&i| v3(samples[i as usize]));
+    let o = pts().next()?;
+    let mut area = DVec3::ZERO;
+    let mut prev = DVec3::ZERO;
+    for p in pts() {
+        area += prev.cross(p - o);
+        prev = p - o;
+    }
+    (area.length() > 1e-6 * length * length).then_some(area)
+}
+
 /// Allocating form of [`frames_into`].
 pub fn frames(plan: FramePlan<'_>, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFrame; 2]>> {
     let mut out = vec![[ScaledFrame::default(); 2]; plan.sampling.n_segments()];
@@ -276,13 +282,15 @@ pub fn frames(plan: FramePlan<'_>, samples: &[[f64; 3]]) -> Result<Vec<[ScaledFr
 }
 
 /// Normals and widths, per curve side, at the curve end occupying position
-/// `k` of fan `f`. `at_start` tells whether it is the curve's start.
-fn end_frame(
+/// `k` of fan `f`. `at_start` tells whether it is the curve's start;
+/// `segment(s)` gives segment `s`'s unit tangent and length (from the
+/// frames in progress, or from one frame of a group).
+pub(crate) fn end_frame(
     fans: &[IntersectionFan],
     f: u32,
     k: u32,
     at_start: bool,
-    frames: &[[ScaledFrame; 2]],
+    segment: impl Fn(usize) -> (DVec3, f64),
 ) -> Result<EndFrame> {
     let fan = &fans[f as usize];
     let v = fan.valence();
@@ -290,8 +298,8 @@ fn end_frame(
     // Outward tangent and length of emanation j.
     let out_tangent = |j: usize| {
         let e = fan.emanations()[j % v];
-        let t = v3(frames[e.segment as usize][0].tangent);
-        (if e.at_start { t } else { -t }, frames[e.segment as usize][0].scale[0])
+        let (t, l) = segment(e.segment as usize);
+        (if e.at_start { t } else { -t }, l)
     };
     let raw = |j: usize| out_tangent(j).0.cross(out_tangent(j + 1).0);
     // The corner vector oriented along the surface normal; zero for a T-junction corner.

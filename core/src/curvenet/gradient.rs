@@ -52,21 +52,27 @@ pub fn deformation_gradients_into(
         if let Some(&value) = rest[s].iter().flat_map(|f| f.scale.iter()).find(|x| !(x.is_finite() && **x > 0.0)) {
             return Err(Error::InvalidParameter { what: "a rest scaled frame's scale", value });
         }
-        if layout.curve_is_isolated(seg.curve as usize) && !(rest[s][0].has_normal() && posed[s][0].has_normal()) {
-            let (r, p) = (&rest[s][0], &posed[s][0]);
-            let f = smallest_rotation(v3(r.tangent), v3(p.tangent)) * (p.scale[0] / r.scale[0]);
-            out[s] = [to_rows(f); 2];
-        } else {
-            for side in 0..2 {
-                let (r, p) = (&rest[s][side], &posed[s][side]);
-                let f = outer(v3(p.tangent), v3(r.tangent)) * (p.scale[0] / r.scale[0])
-                    + outer(v3(p.binormal), v3(r.binormal)) * (p.scale[1] / r.scale[1])
-                    + outer(v3(p.normal), v3(r.normal)) * (p.scale[2] / r.scale[2]);
-                out[s][side] = to_rows(f);
-            }
-        }
+        out[s] = segment_gradients(layout.curve_is_isolated(seg.curve as usize), &rest[s], &posed[s]);
     }
     Ok(())
+}
+
+/// `F` of both sides of one segment from its rest and posed scaled frames
+/// (rest scales positive); `isolated`: the segment's curve meets no
+/// intersection.
+pub(crate) fn segment_gradients(isolated: bool, rest: &[ScaledFrame; 2], posed: &[ScaledFrame; 2]) -> [Mat3; 2] {
+    if isolated && !(rest[0].has_normal() && posed[0].has_normal()) {
+        let (r, p) = (&rest[0], &posed[0]);
+        let f = smallest_rotation(v3(r.tangent), v3(p.tangent)) * (p.scale[0] / r.scale[0]);
+        return [to_rows(f); 2];
+    }
+    std::array::from_fn(|side| {
+        let (r, p) = (&rest[side], &posed[side]);
+        let f = outer(v3(p.tangent), v3(r.tangent)) * (p.scale[0] / r.scale[0])
+            + outer(v3(p.binormal), v3(r.binormal)) * (p.scale[1] / r.scale[1])
+            + outer(v3(p.normal), v3(r.normal)) * (p.scale[2] / r.scale[2]);
+        to_rows(f)
+    })
 }
 
 /// Allocating convenience: samples → frames → gradients, for `rest` and

@@ -40,6 +40,7 @@ mod constraints;
 mod frames;
 mod gradient;
 mod intersections;
+pub(crate) mod lanes;
 mod layout;
 mod rotation;
 mod sampling;

@@ -4,7 +4,7 @@ use glam::{DMat3, DVec3};
 
 /// Below this, `1 + a·b` counts as zero: `a` and `b` are antiparallel and the
 /// smallest rotation between them is not unique.
-const ANTIPARALLEL: f64 = 1e-12;
+pub(crate) const ANTIPARALLEL: f64 = 1e-12;
 
 /// Applies the smallest rotation taking unit `from` to unit `to` to every
 /// vector `n` of `normals`: `c n + v × n + v (v·n)/(1 + c)` with
