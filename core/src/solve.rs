@@ -227,12 +227,15 @@ impl Binding {
     pub(crate) fn deform_rows(&self, ws: &mut Workspace) -> Result<()> {
         let rest_mode = ws.rest_mode;
         for (k, layout) in self.layouts.iter().enumerate() {
-            scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k])?;
+            // A degenerate pose (a collapsed segment, a degenerate
+            // intersection) names the curvenet it is in.
+            let net = |e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) };
+            scaled_frames_into(layout, &ws.samples[k], &mut ws.frames[k]).map_err(net)?;
             let rest_frames = if rest_mode { &ws.rest_frames[k][..] } else { layout.neutral_frames() };
-            deformation_gradients_into(layout, rest_frames, &ws.frames[k], &mut ws.gradients[k])?;
+            deformation_gradients_into(layout, rest_frames, &ws.frames[k], &mut ws.gradients[k]).map_err(net)?;
             let range = self.nets[k];
             let slots = range.slot as usize..range.slot as usize + layout.constraints().len();
-            constraint_gradients_into(layout.constraints(), &ws.gradients[k], &mut ws.slot_f[slots])?;
+            constraint_gradients_into(layout.constraints(), &ws.gradients[k], &mut ws.slot_f[slots]).map_err(net)?;
         }
         let (sample_offset, crossing_offset) = if rest_mode {
             (&ws.rest_sample_offset[..], &ws.rest_crossing_offset[..])

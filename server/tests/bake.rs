@@ -234,20 +234,17 @@ fn bad_commands_exit_2_and_a_missing_output_directory_exits_75() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-#[test]
-fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_nothing() {
-    let dir = temp_dir("nan");
+/// fixtures/grid's shot with its curvenet's frames 1-4 as in the grid
+/// (samples of a stronger layer replace all of the weaker layer's), each
+/// pool first passed to `edit(frame, pool)`; written into `dir`.
+fn grid_shot(dir: &Path, edit: impl Fn(u32, &mut Vec<[f64; 3]>)) -> PathBuf {
     let grid = repo().join("fixtures/grid/grid.usda");
     let stage = Stage::open(&grid).unwrap();
     let net = stage.curvenet("/Grid/Curvenet").unwrap();
-    // Frames 1-4 as in the grid (samples of a stronger layer replace all of
-    // the weaker layer's), with one NaN at frame 3.
     let mut samples = Vec::new();
     for t in 1..=4 {
         let mut pool = stage.posed_pool(&net, Some(t as f64)).unwrap().unwrap();
-        if t == 3 {
-            pool[17][1] = f64::NAN;
-        }
+        edit(t, &mut pool);
         let points: Vec<String> = pool
             .iter()
             .map(|p| {
@@ -262,16 +259,47 @@ fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_no
         "#usda 1.0\n\nover \"Grid\"\n{{\n    over \"Curvenet\"\n    {{\n        point3f[] primvars:curvenet:cv.timeSamples = {{\n{}\n        }}\n    }}\n}}\n",
         samples.join("\n")
     );
-    std::fs::write(dir.join("nan.usda"), over).unwrap();
+    std::fs::write(dir.join("over.usda"), over).unwrap();
     let shot = dir.join("shot.usda");
     std::fs::write(
         &shot,
         format!(
-            "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 4\n    subLayers = [@./nan.usda@, @{}@]\n)\n",
+            "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 4\n    subLayers = [@./over.usda@, @{}@]\n)\n",
             grid.display()
         ),
     )
     .unwrap();
+    shot
+}
+
+#[test]
+fn a_collapsed_curvenet_fails_the_bake_naming_frame_and_curvenet() {
+    let dir = temp_dir("collapsed");
+    let shot = grid_shot(&dir, |t, pool| {
+        if t == 3 {
+            let p = pool[0];
+            pool.iter_mut().for_each(|x| *x = p);
+        }
+    });
+    for k in ["1", "4"] {
+        let run = bake(shot.to_str().unwrap(), &dir.join("bake.usdc"), &["--batch-frames", k]);
+        assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+        let err = stderr(&run);
+        assert!(err.contains("frame 3, /Grid/Curvenet (deforming /Grid/"), "--batch-frames {k}: {err}");
+        assert!(err.contains("collapsed"), "--batch-frames {k}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_nothing() {
+    let dir = temp_dir("nan");
+    // One NaN at frame 3.
+    let shot = grid_shot(&dir, |t, pool| {
+        if t == 3 {
+            pool[17][1] = f64::NAN;
+        }
+    });
     let out_dir = dir.join("out");
     std::fs::create_dir(&out_dir).unwrap();
     for name in ["bake.usda", "bake.usdc"] {

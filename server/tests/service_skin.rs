@@ -151,6 +151,27 @@ async fn joint_transforms_over_http_answer_the_bake_of_the_rigged_shot() {
         (v["code"].clone(), v["details"]["what"].clone()),
         (Value::from("unsupported"), Value::from("joint_transforms"))
     );
+
+    // A pose that collapses one of the three curvenets names that curvenet
+    // (`details.curvenet`, a message starting `curvenets[k]: `), alone and
+    // as frame 1 of a batch of 8, made lane by lane.
+    let pools: Vec<Vec<[f64; 3]>> = plain.curvenets.iter().map(|c| c.pool.clone()).collect();
+    assert_eq!(pools.len(), 3, "the rigged shot has three curvenets");
+    let mut bad = pools.clone();
+    bad[2] = vec![bad[2][0]; bad[2].len()];
+    let plain_uri = format!("/v1/bindings/{plain_id}/frames");
+    let (status, body) = send(&app, &plain_uri, &serde_json::json!({ "posed": bad })).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
+    let v: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!((v["code"].as_str(), v["details"]["curvenet"].as_u64()), (Some("degenerate_pose"), Some(2)), "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("curvenets[2]: "), "{v}");
+    let mut batch: Vec<Value> = (0..8).map(|_| serde_json::json!({ "posed": pools })).collect();
+    batch[1] = serde_json::json!({ "posed": bad });
+    let (status, body) = send(&app, &format!("{plain_uri}:batch"), &serde_json::json!({ "frames": batch })).await;
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
+    let v: Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!((v["details"]["frame"].as_u64(), v["details"]["curvenet"].as_u64()), (Some(1), Some(2)), "{v}");
+    assert!(v["message"].as_str().unwrap().contains("curvenets[2]: "), "{v}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -219,7 +219,9 @@ pub(crate) fn slot_rows<const K: usize>(
     for c in 0..sampling.n_curves() {
         let segs = sampling.curve_segments(c);
         let local = |s: usize| s - segs.start;
-        if layout.curve_is_isolated(c) {
+        // The scalar code's own tests: `frames_into` takes a curve with no
+        // end at an intersection apart; the gradients, an isolated curve.
+        if plan.curve_ends[c] == [None, None] {
             // A curve that meets no intersection, lane by lane through the
             // scalar code (such curves are few, and rarely long).
             for (i, lane_samples) in samples.iter().enumerate() {
@@ -239,7 +241,7 @@ pub(crate) fn slot_rows<const K: usize>(
                     if r.iter().flat_map(|f| f.scale.iter()).any(|x| !(x.is_finite() && *x > 0.0)) {
                         return Err(());
                     }
-                    for (side, f) in segment_gradients(true, r, &[frame; 2]).iter().enumerate() {
+                    for (side, f) in segment_gradients(layout.curve_is_isolated(c), r, &[frame; 2]).iter().enumerate() {
                         let g = &mut gb[(local(s) * 2 + side) * 9..][..9];
                         for (e, x) in f.as_flattened().iter().enumerate() {
                             g[e][i] = *x;

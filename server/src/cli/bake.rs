@@ -645,9 +645,19 @@ fn solve_group(job: &MeshJob, k: usize, frames: &[FrameData], solve_ns: &AtomicU
         .collect();
     let mut points = vec![vec![[0.0; 3]; job.deformer.n_vertices()]; frames.len()];
     let mut outs: Vec<FrameOut<'_>> = points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
-    job.deformer.frames(&inputs, &mut outs).map_err(|e| CliError::Core {
-        context: format!("frame {}, {} (deformed by {})", frames[e.frame].time, job.mesh.path, net_list(&job.nets)),
-        source: e.error,
+    job.deformer.frames(&inputs, &mut outs).map_err(|e| match e.error {
+        // A degenerate pose of one curvenet names it.
+        curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
+            context: format!(
+                "frame {}, {} (deforming {})",
+                frames[e.frame].time, job.nets[curvenet as usize].path, job.mesh.path
+            ),
+            source: *source,
+        },
+        error => CliError::Core {
+            context: format!("frame {}, {} (deformed by {})", frames[e.frame].time, job.mesh.path, net_list(&job.nets)),
+            source: error,
+        },
     })?;
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
     Ok(points.iter().map(|out| out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect()).collect())

@@ -234,6 +234,10 @@ impl ServiceError {
     /// A core error raised while binding (`Phase::Bind`) or solving a frame:
     /// its code (see [`classify`]), its message and the elements it names.
     pub fn core(e: curvenet_core::Error, phase: Phase) -> Self {
+        if let curvenet_core::Error::Curvenet { curvenet, source } = e {
+            // The message starts `curvenets[k]: `, as documented.
+            return Self::core(*source, phase).in_curvenet(curvenet as usize);
+        }
         let mut details = ErrorDetails::default();
         let code = classify(&e, phase, &mut details);
         let details = (details != ErrorDetails::default()).then(|| Box::new(details));
