@@ -4,8 +4,10 @@
 //! when their client leaves, SIGTERM exits within the drain timeout even
 //! mid-binding, slow and idle clients are cut off while others are served,
 //! the cache stays within its bytes (RSS measured), batches are admitted
-//! under contention, and the small things. Every loop is bounded in count
-//! and time.
+//! under contention, and the small things; and (2026-12-03) a frame waits
+//! for one wave of long batches, not all of them, a batch stops when its
+//! client leaves, and batches in flight stay within `--max-batch-memory`.
+//! Every loop is bounded in count and time.
 
 #[allow(dead_code)]
 mod common;
@@ -227,6 +229,45 @@ fn bind(addr: SocketAddr, req: &BindingRequest) -> String {
     let a = post_json(addr, "/v1/bindings", req);
     assert_eq!(a.status, 200, "{}", a.text());
     a.json()["binding_id"].as_str().unwrap().to_string()
+}
+
+/// The 22k hand (long enough batches to watch them run).
+fn hand_22k() -> &'static BindingRequest {
+    static HAND: OnceLock<BindingRequest> = OnceLock::new();
+    HAND.get_or_init(|| request_from_stage("fixtures/hand/hand_22k.usdc"))
+}
+
+/// A binary `frames:batch` body of `n` frames, frame `i` posing every
+/// curvenet's pool scaled by `1 + i·1e-4`.
+fn binary_batch(req: &BindingRequest, n: usize) -> Vec<u8> {
+    let arrays: Vec<Value> = req
+        .curvenets
+        .iter()
+        .enumerate()
+        .map(|(k, c)| json!({"name": "posed", "index": k, "shape": [c.pool.len(), 3]}))
+        .collect();
+    let header = json!({ "frames": vec![json!({ "arrays": arrays }); n] });
+    let data: Vec<f32> = (0..n)
+        .flat_map(|i| {
+            req.curvenets.iter().flat_map(move |c| scaled(&c.pool, 1.0 + i as f64 * 1e-4).into_iter().flatten())
+        })
+        .map(|x| x as f32)
+        .collect();
+    binary_frame(&header, &data)
+}
+
+/// Sends a request without reading its answer: the open connection.
+fn send(addr: SocketAddr, path: &str, content_type: &str, body: &[u8]) -> TcpStream {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let head = format!(
+        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Type: {content_type}\r\n\
+         Content-Length: {}\r\n\r\n",
+        body.len()
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    s.write_all(body).unwrap();
+    s
 }
 
 fn scaled(pool: &[[f64; 3]], s: f64) -> Vec<[f64; 3]> {
@@ -1033,4 +1074,131 @@ fn an_answer_that_leaves_the_body_unread_closes_the_connection_and_says_so() {
     s.write_all(format!("GET /healthz HTTP/1.1\r\nHost: {addr}\r\n\r\n").as_bytes()).unwrap();
     let (status, answer, _) = read_one(&mut s);
     assert_eq!(status, 200, "{answer}");
+}
+
+/// Waits (bounded) until `metric` reaches `want`; returns how long it took.
+fn until_at_least(server: &Server, metric: &str, want: f64, limit: Duration) -> Duration {
+    let t = Instant::now();
+    while server.metric(metric) < want {
+        assert!(t.elapsed() < limit, "{metric} never reached {want}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    t.elapsed()
+}
+
+#[test]
+fn a_frame_posted_during_long_batches_waits_for_one_wave_of_them_not_for_all() {
+    let _serial = one_at_a_time();
+    let server = Server::start(&["--max-batch-bytes", "1GiB"]);
+    let addr = server.addr;
+    let req = hand_22k();
+    let id = bind(addr, req);
+    // Two batches of 400 frames of the 22k hand: each about 0.3-1 s of
+    // solving on both solve threads, in waves of two groups of 8 frames.
+    const N: usize = 400;
+    let body = std::sync::Arc::new(binary_batch(req, N));
+    let t0 = Instant::now();
+    let batches: Vec<_> = (0..2)
+        .map(|_| {
+            let (body, id) = (body.clone(), id.clone());
+            std::thread::spawn(move || {
+                let a = post_binary(addr, &format!("/v1/bindings/{id}/frames:batch"), &body);
+                (a.status, a.body.len(), t0.elapsed())
+            })
+        })
+        .collect();
+    // Once their first groups are solved, one frame.
+    until_at_least(&server, "curvenet_frames_solved_total", 1.0, Duration::from_secs(60));
+    let asked = t0.elapsed();
+    let pools: Vec<_> = req.curvenets.iter().map(|c| c.pool.clone()).collect();
+    let single = post_json(addr, &format!("/v1/bindings/{id}/frames"), &json!({ "posed": pools }));
+    let answered = t0.elapsed();
+    let solved_then = server.metric("curvenet_frames_solved_total");
+    assert_eq!(single.status, 200, "{}", single.text());
+    let done: Vec<_> = batches.into_iter().map(|h| h.join().unwrap()).collect();
+    let vertices = req.projection_points.len();
+    for (status, len, _) in &done {
+        assert_eq!(*status, 200);
+        assert!(*len > N * vertices * 12, "a batch answer of {len} bytes");
+    }
+    let first_batch = done.iter().map(|d| d.2).min().unwrap();
+    eprintln!(
+        "frame asked at {asked:?}, answered at {answered:?} ({solved_then} frames solved then); batches done at {:?}",
+        done.iter().map(|d| d.2).collect::<Vec<_>>()
+    );
+    // Between the frame's asking and its answer the pool ran at most a wave
+    // of each batch (16 frames each) besides it; frame by frame it waited
+    // for most of the batches (769 of their 800 frames solved when it was
+    // answered, measured with each batch one job on the pool).
+    assert!(
+        answered < first_batch && solved_then < (N / 2) as f64,
+        "the frame (asked at {asked:?}, answered at {answered:?}, {solved_then} of the batches' {} frames solved \
+         then) waited for the batches (the first done at {first_batch:?})",
+        2 * N
+    );
+}
+
+#[test]
+fn a_batch_stops_solving_when_its_client_leaves() {
+    let _serial = one_at_a_time();
+    let server = Server::start(&["--max-batch-bytes", "1GiB"]);
+    let addr = server.addr;
+    let req = hand_22k();
+    let id = bind(addr, req);
+    // 2,000 frames: a few seconds of solving. The client leaves after the first groups.
+    const N: usize = 2000;
+    let s = send(addr, &format!("/v1/bindings/{id}/frames:batch"), "application/octet-stream", &binary_batch(req, N));
+    until_at_least(&server, "curvenet_frames_solved_total", 16.0, Duration::from_secs(60));
+    drop(s);
+    let t = Instant::now();
+    while server.metric("curvenet_solves_in_flight") != 0.0 {
+        assert!(t.elapsed() < Duration::from_secs(10), "the batch still holds its permit");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let stopped = server.metric("curvenet_frames_solved_total");
+    std::thread::sleep(Duration::from_millis(500));
+    let later = server.metric("curvenet_frames_solved_total");
+    eprintln!("the batch stopped after {stopped} of {N} frames, {:?} after its client left", t.elapsed());
+    assert_eq!(stopped, later, "frames were still solved after the batch stopped");
+    assert!(stopped < (N / 2) as f64, "the batch solved {stopped} of its {N} frames after its client left");
+    assert_eq!(server.metric("curvenet_batch_memory_bytes"), 0.0);
+}
+
+#[test]
+fn batches_in_flight_hold_at_most_the_batch_memory_together() {
+    let _serial = one_at_a_time();
+    let server = Server::start(&["--max-batch-memory", "64MiB", "--queue-timeout", "0.5"]);
+    let addr = server.addr;
+    let req = hand_22k();
+    let id = bind(addr, req);
+    let path = format!("/v1/bindings/{id}/frames:batch");
+    let vertices = req.projection_points.len();
+    // Larger than all of it (200 frames hold 24 bytes a vertex: 105 MB): 422.
+    let a = post_binary(addr, &path, &binary_batch(req, 200));
+    assert_eq!((a.status, a.code().as_str()), (422, "limit_exceeded"), "{}", a.text());
+    assert!(a.text().contains("--max-batch-memory"), "{}", a.text());
+    // 100 frames (about 53 MB) whose client does not read the answer hold their share while it is unsent.
+    let body = binary_batch(req, 100);
+    let mut held = send(addr, &path, "application/octet-stream", &body);
+    until_at_least(&server, "curvenet_frames_solved_total", 100.0, Duration::from_secs(60));
+    let reserved = server.metric("curvenet_batch_memory_bytes");
+    assert!(reserved >= (100 * vertices * 24) as f64 && reserved <= (64 << 20) as f64, "{reserved} bytes reserved");
+    // Another such batch waits in line for the queue timeout, then 503 naming the limit.
+    let t = Instant::now();
+    let b = post_binary(addr, &path, &body);
+    assert_eq!((b.status, b.code().as_str()), (503, "saturated"), "{}", b.text());
+    assert!(b.text().contains("--max-batch-memory"), "{}", b.text());
+    assert!(b.head.to_ascii_lowercase().contains("retry-after"), "{}", b.head);
+    assert!(t.elapsed() >= Duration::from_millis(450), "answered after {:?}, not after waiting in line", t.elapsed());
+    // The first answer, read now, is whole; then its share is free and the second batch runs.
+    let first = read_answer(&mut held).expect("an answer");
+    assert_eq!(first.status, 200);
+    assert!(first.body.len() > 100 * vertices * 12);
+    let t = Instant::now();
+    while server.metric("curvenet_batch_memory_bytes") != 0.0 {
+        assert!(t.elapsed() < Duration::from_secs(10), "the sent answer still holds its share");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let b = post_binary(addr, &path, &body);
+    assert_eq!(b.status, 200, "{}", b.text());
 }

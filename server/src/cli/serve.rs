@@ -55,6 +55,12 @@ pub struct Args {
     /// bytes, 48 with gradients), e.g. 256MiB.
     #[arg(long, env = "CURVENET_MAX_BATCH_BYTES", default_value = "256MiB", value_parser = parse_bytes)]
     pub max_batch_bytes: u64,
+    /// Memory all frames:batch requests in flight may hold together (their
+    /// frames, results and answers), e.g. 1536MiB; a batch waits in line
+    /// for its share up to --queue-timeout (then 503 saturated), and one
+    /// larger than all of it is refused (422 limit_exceeded).
+    #[arg(long, env = "CURVENET_MAX_BATCH_MEMORY", default_value = "1536MiB", value_parser = parse_bytes)]
+    pub max_batch_memory: u64,
     /// Largest `POST /v1/bake`, as the points it holds until it writes its
     /// layer (frames × vertices × 12 bytes), e.g. 1GiB; over it: 422
     /// limit_exceeded before any work.
@@ -163,6 +169,7 @@ pub fn run(args: &Args) -> CliResult {
         },
         queue_timeout,
         max_batch_bytes: args.max_batch_bytes,
+        max_batch_memory: args.max_batch_memory,
         max_bake_bytes: args.max_bake_bytes,
         connections: curvenet_server::ConnectionLimits {
             header_timeout,

@@ -358,13 +358,13 @@ pub fn encode(solved: &[Solved], batch: bool) -> Vec<u8> {
     for s in solved {
         for p in &s.points {
             for x in p {
-                out.extend_from_slice(&(*x as f32).to_le_bytes());
+                out.extend_from_slice(&x.to_le_bytes());
             }
         }
         if let Some(g) = &s.gradients {
             for m in g {
                 for x in m {
-                    out.extend_from_slice(&(*x as f32).to_le_bytes());
+                    out.extend_from_slice(&x.to_le_bytes());
                 }
             }
         }

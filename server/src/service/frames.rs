@@ -26,7 +26,7 @@ use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
 use crate::openapi::BinaryFrames;
-use crate::solve::{Numbering, solve_frames};
+use crate::solve::{HeldBody, Numbering, solve_batch};
 use crate::state::AppState;
 
 /// A frame's input, in f64, whatever its wire form.
@@ -49,6 +49,21 @@ pub struct Frame {
     pub rest_cage: Option<Vec<[f64; 3]>>,
     /// Posed-cage edits this frame, one offset per cage vertex of the binding.
     pub posed_cage_offsets: Option<Vec<[f64; 3]>>,
+}
+
+impl Frame {
+    /// Bytes of its arrays (what a batch holds of it, `--max-batch-memory`).
+    pub fn heap_bytes(&self) -> usize {
+        let points = |p: &Option<Vec<[f64; 3]>>| p.as_ref().map_or(0, |p| p.len() * 24);
+        self.posed.iter().map(points).sum::<usize>()
+            + points(&self.rest)
+            + points(&self.rest_cage)
+            + points(&self.posed_cage_offsets)
+            + self.weights.as_ref().map_or(0, |w| w.len() * 8)
+            + self.joint_transforms.as_ref().map_or(0, |j| j.len() * 128)
+            + self.adjustments.len() * std::mem::size_of::<Adjustment>()
+            + self.topology_hash.as_ref().map_or(0, String::len)
+    }
 }
 
 /// A wire adjustment as core's: absent fields are no change.
@@ -82,10 +97,11 @@ impl From<FrameRequest> for Frame {
     }
 }
 
-/// A solved frame, in f64.
+/// A solved frame, in the wire's f32 (converted as soon as a frame is
+/// solved, so a batch holds its frames at the answer's size, not twice it).
 pub struct Solved {
-    pub points: Vec<[f64; 3]>,
-    pub gradients: Option<Vec<[f64; 9]>>,
+    pub points: Vec<[f32; 3]>,
+    pub gradients: Option<Vec<[f32; 9]>>,
     pub solve_ms: f64,
     /// Per curvenet, knot pool index → row-major orientation (when asked).
     pub knot_orientations: Option<Vec<BTreeMap<String, [f64; 9]>>>,
@@ -94,8 +110,8 @@ pub struct Solved {
 impl Solved {
     pub fn into_response(self) -> FrameResponse {
         FrameResponse {
-            points: self.points.iter().map(|p| p.map(|x| x as f32)).collect(),
-            gradients: self.gradients.map(|g| g.iter().map(|m| m.map(|x| x as f32)).collect()),
+            points: self.points,
+            gradients: self.gradients,
             solve_ms: self.solve_ms,
             knot_orientations: self.knot_orientations,
         }
@@ -148,7 +164,7 @@ pub(crate) async fn answer(
     } else {
         Numbering::One
     };
-    let out = solve_frames(
+    let (out, memory) = solve_batch(
         state,
         admission,
         entry,
@@ -157,10 +173,11 @@ pub(crate) async fn answer(
         move |_, solved| encode(form, batch, solved),
     )
     .await?;
-    Ok(match form {
-        Form::Json => ([(header::CONTENT_TYPE, HeaderValue::from_static("application/json"))], out).into_response(),
-        Form::Binary => ([(header::CONTENT_TYPE, HeaderValue::from_static(binary::CONTENT_TYPE))], out).into_response(),
-    })
+    let content_type = match form {
+        Form::Json => HeaderValue::from_static("application/json"),
+        Form::Binary => HeaderValue::from_static(binary::CONTENT_TYPE),
+    };
+    Ok(([(header::CONTENT_TYPE, content_type)], axum::body::Body::new(HeldBody::new(out, memory))).into_response())
 }
 
 /// Parses the frames of a request (on the solve pool; checked afterwards by [`validate`]).
@@ -410,10 +427,8 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
         .deformer
         .frame(&input, &mut points, gradients.as_deref_mut())
         .map_err(|e| name_adjustment(ServiceError::core(e, Phase::Frame), &frame.adjustments))?;
-    finite_in_f32(&points, "points")?;
-    if let Some(g) = &gradients {
-        finite_in_f32(g, "gradients")?;
-    }
+    let points = in_f32(&points, "points")?;
+    let gradients = gradients.map(|g| in_f32(&g, "gradients")).transpose()?;
     let knot_orientations = if frame.orientations { Some(orientations(entry, frame)?) } else { None };
     Ok(Solved { points, gradients, solve_ms: t0.elapsed().as_secs_f64() * 1e3, knot_orientations })
 }
@@ -448,16 +463,12 @@ pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usiz
         .enumerate()
         .map(|(i, (frame, (points, gradients)))| {
             let checked = (|| {
-                finite_in_f32(&points, "points")?;
-                if let Some(g) = &gradients {
-                    finite_in_f32(g, "gradients")?;
-                }
-                if frame.orientations { orientations(entry, frame).map(Some) } else { Ok(None) }
+                let points = in_f32(&points, "points")?;
+                let gradients = gradients.map(|g| in_f32(&g, "gradients")).transpose()?;
+                let knot_orientations = if frame.orientations { Some(orientations(entry, frame)?) } else { None };
+                Ok(Solved { points, gradients, solve_ms, knot_orientations })
             })();
-            match checked {
-                Ok(knot_orientations) => Ok(Solved { points, gradients, solve_ms, knot_orientations }),
-                Err(e) => Err((i, e)),
-            }
+            checked.map_err(|e| (i, e))
         })
         .collect()
 }
@@ -513,12 +524,13 @@ fn orientations(entry: &Entry, frame: &Frame) -> Result<Vec<BTreeMap<String, [f6
         .collect()
 }
 
-/// Refuses a result that is not finite once sent as f32 (a pose or weights
-/// extreme enough to overflow): `non_finite`, naming the first bad vertex.
-fn finite_in_f32<const N: usize>(values: &[[f64; N]], what: &str) -> Result<(), ServiceError> {
+/// A result in the wire's f32; refuses one that is not finite once sent
+/// as f32 (a pose or weights extreme enough to overflow): `non_finite`,
+/// naming the first bad vertex.
+fn in_f32<const N: usize>(values: &[[f64; N]], what: &str) -> Result<Vec<[f32; N]>, ServiceError> {
     let bad = |x: &f64| !(x.is_finite() && x.abs() <= f32::MAX as f64);
     match values.iter().position(|v| v.iter().any(bad)) {
-        None => Ok(()),
+        None => Ok(values.iter().map(|v| v.map(|x| x as f32)).collect()),
         Some(i) => Err(ServiceError::new(
             Code::NonFinite,
             format!(

@@ -34,6 +34,7 @@ pub(crate) async fn metrics(State(state): State<AppState>) -> Response {
     let inner = &state.inner;
     inner.cache.refresh_gauges().await;
     inner.metrics.solves_in_flight.set(state.solves_in_flight() as f64);
+    inner.metrics.batch_memory_bytes.set(state.batch_memory_held() as f64);
     inner.metrics.bindings_running.set(inner.jobs.len() as f64);
     inner.metrics.bindings_cancelled.absolute(inner.jobs.cancelled());
     ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render())

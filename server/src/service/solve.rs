@@ -1,19 +1,25 @@
 //! The one solve helper: every route that solves frames (frames, batches,
 //! deform) goes through [`solve_frames`], which runs on the solve pool
 //! holding the request's [`Admission`]: read the frames → validate each
-//! against the binding → (batches) check the answer's size → solve them
-//! with `curvenet_core::Deformer::frames`, in groups of up to
-//! [`BATCH_FRAMES`] frames sharing one sweep of each triangular solve (a
-//! batch's groups as many at once as it holds permits) → record the metrics → build the answer.
+//! against the binding → (batches) check the answer's size and reserve the
+//! batch's memory → solve them with `curvenet_core::Deformer::frames`, in
+//! groups of up to [`BATCH_FRAMES`] frames sharing one sweep of each
+//! triangular solve (a batch's groups as many at once as it holds permits,
+//! each group its own job on the pool) → record the metrics → build the answer.
 
+use std::convert::Infallible;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 
-use rayon::prelude::*;
+use axum::body::Bytes;
+use tokio::sync::OwnedSemaphorePermit;
 
 use crate::cache::Entry;
 use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
 use crate::frames::{self, Frame, Solved};
+use crate::metrics::Metrics;
 use crate::state::AppState;
 
 /// Frames of one request solved together (`Deformer::frames`): the bake's
@@ -45,6 +51,16 @@ impl Numbering {
 /// Solves the frames `read` returns from `entry`, on the solve pool, and
 /// answers what `answer` makes of them (also on the pool: encoding a large
 /// batch is work too). `admission` is held until the answer is built.
+///
+/// Each step is its own job on the pool: reading and checking the frames,
+/// then (a batch) each wave of groups (as many groups as the request holds
+/// permits), then the answer. The pool runs jobs in the order they were
+/// queued, so a frame posted while a long batch runs waits for one wave of
+/// it, not all of it; and a batch whose client goes away (this future is
+/// dropped) stops after the wave it is in. A batch first reserves what it
+/// will hold in `--max-batch-memory` ([`AppState::batch_memory`]), until
+/// its answer is sent: [`solve_batch`] returns the reservation for the
+/// answer's body to hold ([`HeldBody`]).
 pub(crate) async fn solve_frames<T: Send + 'static>(
     state: &AppState,
     admission: Admission,
@@ -53,53 +69,125 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
     read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
     answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
 ) -> Result<T, ServiceError> {
+    Ok(solve_batch(state, admission, entry, numbering, read, answer).await?.0)
+}
+
+/// [`solve_frames`], also returning a batch's reservation of
+/// `--max-batch-memory` (`None` for one frame), to be held until its answer
+/// is sent.
+pub(crate) async fn solve_batch<T: Send + 'static>(
+    state: &AppState,
+    admission: Admission,
+    entry: Arc<Entry>,
+    numbering: Numbering,
+    read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
+    answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
+) -> Result<(T, Option<OwnedSemaphorePermit>), ServiceError> {
     let metrics = state.inner.metrics.clone();
-    let (out, n, solve_ms) = state
-        .on_pool(move || {
-            let parallel = admission.parallel();
-            let _admission = admission;
-            let frames = read(&entry)?;
-            for (i, f) in frames.iter().enumerate() {
-                frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
-            }
-            if let Numbering::Batch { max_bytes, json } = numbering {
-                check_batch_size(&entry, &frames, max_bytes, json)?;
-            }
-            let solved: Vec<Solved> = if frames.len() == 1 {
-                // One frame (the interactive path): Deformer::frame.
-                vec![frames::solve(&entry, &frames[0]).map_err(|e| numbering.name(0, e))?]
-            } else {
-                // Groups of up to BATCH_FRAMES frames (one multi-frame solve
-                // each), spread over the permits the request holds: no larger
-                // than an even share of the frames, so a small batch still
-                // spreads. Errors name the first failing frame in order.
-                let size = if parallel > 1 { frames.len().div_ceil(parallel) } else { BATCH_FRAMES };
-                let size = size.clamp(1, BATCH_FRAMES);
-                let solve = |(g, group): (usize, &[Frame])| {
-                    frames::solve_group(&entry, group).map_err(|(j, e)| numbering.name(g * size + j, e))
+    let parallel = admission.parallel();
+    let _admission = admission;
+    let (frames, held) = {
+        let entry = entry.clone();
+        state
+            .on_pool(move || {
+                let frames = read(&entry)?;
+                for (i, f) in frames.iter().enumerate() {
+                    frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
+                }
+                let held = match numbering {
+                    Numbering::Batch { max_bytes, json } => {
+                        let answer = check_batch_size(&entry, &frames, max_bytes, json)?;
+                        Some(batch_held_bytes(&entry, &frames, answer))
+                    }
+                    _ => None,
                 };
-                let groups: Vec<Vec<Solved>> = if parallel > 1 {
-                    let results: Vec<Result<Vec<Solved>, ServiceError>> =
-                        frames.par_chunks(size).enumerate().map(solve).collect();
-                    results.into_iter().collect::<Result<_, _>>()?
-                } else {
-                    frames.chunks(size).enumerate().map(solve).collect::<Result<_, _>>()?
-                };
-                groups.into_iter().flatten().collect()
-            };
-            for s in &solved {
-                metrics.solve_seconds.record(s.solve_ms / 1e3);
-            }
-            metrics.frames_solved.increment(solved.len() as u64);
-            let solve_ms: f64 = solved.iter().map(|s| s.solve_ms).sum();
-            let n = solved.len();
-            Ok((answer(&entry, solved)?, n, solve_ms))
-        })
-        .await?;
+                Ok((frames, held))
+            })
+            .await?
+    };
+    let memory = match held {
+        Some(bytes) => Some(state.batch_memory(bytes).await?),
+        None => None,
+    };
+    let solved: Vec<Solved> = if frames.len() == 1 {
+        // One frame (the interactive path): Deformer::frame.
+        let entry = entry.clone();
+        let frame = frames.into_iter().next().expect("one frame");
+        let solved =
+            state.on_pool(move || Ok(vec![frames::solve(&entry, &frame).map_err(|e| numbering.name(0, e))?])).await?;
+        record(&metrics, &solved);
+        solved
+    } else {
+        solve_in_waves(state, &entry, frames, numbering, parallel).await?
+    };
+    let solve_ms: f64 = solved.iter().map(|s| s.solve_ms).sum();
+    let n = solved.len();
+    let out = state.on_pool(move || answer(&entry, solved)).await?;
     let span = tracing::Span::current();
     span.record("solve_ms", solve_ms);
     span.record("frames", n);
-    Ok(out)
+    Ok((out, memory))
+}
+
+/// Counts solved frames in the metrics (a batch's as each group is done).
+fn record(metrics: &Metrics, solved: &[Solved]) {
+    for s in solved {
+        metrics.solve_seconds.record(s.solve_ms / 1e3);
+    }
+    metrics.frames_solved.increment(solved.len() as u64);
+}
+
+/// A batch's frames in groups of up to [`BATCH_FRAMES`] (one multi-frame
+/// solve each), no larger than an even share of the frames over the
+/// `parallel` permits the request holds (so a small batch still spreads).
+/// Each group is a job on the pool, queued `parallel` at a time (a wave),
+/// the next wave once this one is done. Errors name the first failing frame
+/// in order.
+async fn solve_in_waves(
+    state: &AppState,
+    entry: &Arc<Entry>,
+    frames: Vec<Frame>,
+    numbering: Numbering,
+    parallel: usize,
+) -> Result<Vec<Solved>, ServiceError> {
+    let parallel = parallel.max(1);
+    let n = frames.len();
+    let size = if parallel > 1 { n.div_ceil(parallel) } else { BATCH_FRAMES }.clamp(1, BATCH_FRAMES);
+    let frames = Arc::new(frames);
+    let starts: Vec<usize> = (0..n).step_by(size).collect();
+    let mut solved = Vec::with_capacity(n);
+    for wave in starts.chunks(parallel) {
+        let jobs: Vec<_> = wave
+            .iter()
+            .map(|&start| {
+                let (frames, entry) = (frames.clone(), entry.clone());
+                state.spawn_on_pool(move || {
+                    let group = &frames[start..(start + size).min(frames.len())];
+                    frames::solve_group(&entry, group).map_err(|(j, e)| numbering.name(start + j, e))
+                })
+            })
+            .collect();
+        for job in jobs {
+            let group = job.await?;
+            record(&state.inner.metrics, &group);
+            solved.extend(group);
+        }
+    }
+    Ok(solved)
+}
+
+/// What a batch holds until its answer is built, counted against
+/// `--max-batch-memory`: its parsed frames (f64), its solved frames (f32:
+/// 12 bytes a vertex, 48 with gradients) and its encoded answer (`answer`
+/// bytes, [`check_batch_size`]). The request body is bounded apart
+/// (`--body-limit`). At the other limits' defaults the largest batch (a
+/// 256 MiB binary answer of frames that each carry a rest pose) holds
+/// 24 + 12 + 12 bytes a vertex-frame for 22.4M vertex-frames: 1.07 GB.
+fn batch_held_bytes(entry: &Entry, frames: &[Frame], answer: u64) -> u64 {
+    let v = entry.binding().n_vertices() as u64;
+    let results: u64 = frames.iter().map(|f| v * if f.gradients { 48 } else { 12 }).sum();
+    let inputs: u64 = frames.iter().map(|f| f.heap_bytes() as u64).sum();
+    answer + results + inputs
 }
 
 /// Bytes per vertex a batch answer is counted at: binary f32 (a point 12,
@@ -114,7 +202,8 @@ const JSON_BYTES: (u64, u64) = (50, 150);
 /// included) before solving it: the answer, unlike the request, is not
 /// bounded by the body limit, and a JSON answer is about four times a
 /// binary one.
-fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Result<(), ServiceError> {
+/// Returns the answer's bytes.
+fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Result<u64, ServiceError> {
     let v = entry.binding().n_vertices() as u64;
     let (point, gradient) = if json { JSON_BYTES } else { BINARY_BYTES };
     let bytes: u64 = frames.iter().map(|f| v * if f.gradients { point + gradient } else { point }).sum();
@@ -128,5 +217,53 @@ fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Re
             ),
         ));
     }
-    Ok(())
+    Ok(bytes)
+}
+
+/// An answer's body that holds its batch's reservation of
+/// `--max-batch-memory` until it is sent: written in chunks of
+/// [`HeldBody::CHUNK`] bytes (slices of one buffer, freed when the last is
+/// written), the reservation dropped with the last chunk or when the
+/// connection goes away. A client that stops reading holds it until the
+/// idle timeout closes its connection.
+pub(crate) struct HeldBody {
+    bytes: Bytes,
+    memory: Option<OwnedSemaphorePermit>,
+}
+
+impl HeldBody {
+    const CHUNK: usize = 1 << 20;
+
+    pub(crate) fn new(bytes: Vec<u8>, memory: Option<OwnedSemaphorePermit>) -> Self {
+        Self { bytes: Bytes::from(bytes), memory }
+    }
+}
+
+impl http_body::Body for HeldBody {
+    type Data = Bytes;
+    type Error = Infallible;
+
+    fn poll_frame(
+        mut self: Pin<&mut Self>,
+        _: &mut Context<'_>,
+    ) -> Poll<Option<Result<http_body::Frame<Bytes>, Infallible>>> {
+        if self.bytes.is_empty() {
+            self.memory = None;
+            return Poll::Ready(None);
+        }
+        let n = self.bytes.len().min(Self::CHUNK);
+        let chunk = self.bytes.split_to(n);
+        if self.bytes.is_empty() {
+            self.memory = None;
+        }
+        Poll::Ready(Some(Ok(http_body::Frame::data(chunk))))
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    fn size_hint(&self) -> http_body::SizeHint {
+        http_body::SizeHint::with_exact(self.bytes.len() as u64)
+    }
 }

@@ -28,6 +28,12 @@ pub const DEFAULT_QUEUE_TIMEOUT: Duration = Duration::from_secs(2);
 pub const MAX_LINE_PER_SOLVE: usize = 4;
 /// Default largest answer of a batch, in bytes of f32 data.
 pub const DEFAULT_MAX_BATCH_BYTES: u64 = 256 << 20;
+/// Default `Config::max_batch_memory`: 1.5 GiB held by batches in flight
+/// together. The largest batch the other defaults let in (a 256 MiB binary
+/// answer, with a rest pose per frame) holds about 1.07 GB (see
+/// `solve::batch_held_bytes`); so one always fits, and with smaller ones a
+/// few run at once.
+pub const DEFAULT_MAX_BATCH_MEMORY: u64 = 1536 << 20;
 /// Default `Config::max_bake_bytes`: 1 GiB of points (about 950 frames of
 /// the 94k hand); a bake's peak memory is a few times that (the layer is
 /// built from them at the end).
@@ -57,6 +63,10 @@ pub struct Config {
     pub queue_timeout: Duration,
     /// Largest answer of one batch: frames × vertices × 12 bytes (48 with gradients).
     pub max_batch_bytes: u64,
+    /// Bytes all batches in flight may hold together (their frames, results
+    /// and answers): a batch waits in line for its share up to the queue
+    /// timeout (then 503); one larger than all of it is refused (422).
+    pub max_batch_memory: u64,
     /// Largest bake: the points it holds until it writes, frames × vertices × 12 bytes.
     pub max_bake_bytes: u64,
     /// Connection limits and timeouts (headers, bodies, idle keep-alive).
@@ -76,6 +86,7 @@ impl Default for Config {
             work: WorkLimits::default(),
             queue_timeout: DEFAULT_QUEUE_TIMEOUT,
             max_batch_bytes: DEFAULT_MAX_BATCH_BYTES,
+            max_batch_memory: DEFAULT_MAX_BATCH_MEMORY,
             max_bake_bytes: DEFAULT_MAX_BAKE_BYTES,
             connections: Default::default(),
         }
@@ -95,6 +106,8 @@ pub(crate) struct Inner {
     pub baker: Option<Baker>,
     pub cache: BindingCache,
     pub permits: Arc<Semaphore>,
+    /// `max_batch_memory` in KiB, one permit each ([`AppState::batch_memory`]).
+    pub batch_memory: Arc<Semaphore>,
     pub pool: rayon::ThreadPool,
     pub metrics: Arc<Metrics>,
     pub token_hash: Option<blake3::Hash>,
@@ -133,6 +146,7 @@ impl AppState {
         Ok(Self {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(config.max_solves.min(Semaphore::MAX_PERMITS))),
+                batch_memory: Arc::new(Semaphore::new(kib(config.max_batch_memory) as usize)),
                 token_hash: config.token.as_deref().map(|t| blake3::hash(t.as_bytes())),
                 config,
                 bake_roots,
@@ -187,6 +201,53 @@ impl AppState {
         waited.ok_or_else(|| self.saturated())
     }
 
+    /// Reserves `bytes` of `--max-batch-memory` for a batch until the guard
+    /// is dropped. When the others in flight hold too much of it, the batch
+    /// waits in line (first come, first served) at most the queue timeout,
+    /// then `saturated`; a batch larger than all of it is `limit_exceeded`.
+    pub(crate) async fn batch_memory(&self, bytes: u64) -> Result<OwnedSemaphorePermit, ServiceError> {
+        let max = self.inner.config.max_batch_memory;
+        let need = kib(bytes);
+        if need > kib(max) {
+            return Err(ServiceError::new(
+                Code::LimitExceeded,
+                format!(
+                    "the batch would hold {bytes} bytes (its frames, results and answer), more than this server \
+                     lets all batches in flight hold together, {max} (--max-batch-memory, \
+                     CURVENET_MAX_BATCH_MEMORY); split it"
+                ),
+            ));
+        }
+        let memory = self.inner.batch_memory.clone();
+        if let Ok(p) = memory.clone().try_acquire_many_owned(need) {
+            return Ok(p);
+        }
+        let queue = self.inner.config.queue_timeout;
+        let waited = if queue.is_zero() {
+            None
+        } else {
+            tokio::time::timeout(queue, memory.acquire_many_owned(need)).await.ok().and_then(Result::ok)
+        };
+        waited.ok_or_else(|| {
+            self.inner.metrics.saturated.increment(1);
+            ServiceError::new(
+                Code::Saturated,
+                format!(
+                    "the batches in flight hold this server's memory for batches ({max} bytes, \
+                     --max-batch-memory) and this one, {bytes} bytes, waited {:.1} s for its share; \
+                     retry after the Retry-After delay, or send smaller batches",
+                    queue.as_secs_f64()
+                ),
+            )
+        })
+    }
+
+    /// Bytes batches in flight hold now ([`Self::batch_memory`]).
+    pub fn batch_memory_held(&self) -> u64 {
+        let total = kib(self.inner.config.max_batch_memory) as usize;
+        (total - self.inner.batch_memory.available_permits().min(total)) as u64 * 1024
+    }
+
     /// Up to `n` more permits, only those free right now (a batch's extra parallelism).
     pub(crate) fn spare_permits(&self, n: u32) -> Option<OwnedSemaphorePermit> {
         (1..=n).rev().find_map(|k| self.inner.permits.clone().try_acquire_many_owned(k).ok())
@@ -214,17 +275,35 @@ impl AppState {
         &self,
         f: impl FnOnce() -> Result<T, ServiceError> + Send + 'static,
     ) -> Result<T, ServiceError> {
+        self.spawn_on_pool(f).await
+    }
+
+    /// Queues `f` on the solve pool now (behind the jobs queued before it:
+    /// the pool takes jobs from outside it first come, first served) and
+    /// returns its result to await. Dropping the future does not stop `f`.
+    pub(crate) fn spawn_on_pool<T: Send + 'static>(
+        &self,
+        f: impl FnOnce() -> Result<T, ServiceError> + Send + 'static,
+    ) -> impl std::future::Future<Output = Result<T, ServiceError>> + Send + 'static {
         let (tx, rx) = tokio::sync::oneshot::channel();
         self.inner.pool.spawn(move || {
             let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
             let _ = tx.send(r);
         });
-        match rx.await {
-            Ok(Ok(r)) => r,
-            Ok(Err(panic)) => Err(ServiceError::internal(format!("a solve panicked: {}", panic_message(&panic)))),
-            Err(_) => Err(ServiceError::internal("the solve pool dropped a job")),
+        async move {
+            match rx.await {
+                Ok(Ok(r)) => r,
+                Ok(Err(panic)) => Err(ServiceError::internal(format!("a solve panicked: {}", panic_message(&panic)))),
+                Err(_) => Err(ServiceError::internal("the solve pool dropped a job")),
+            }
         }
     }
+}
+
+/// Bytes in KiB, rounded up, as semaphore permits: at most `u32::MAX` (what
+/// one acquisition can take), so a budget over 4 TiB counts as 4 TiB.
+fn kib(bytes: u64) -> u32 {
+    bytes.div_ceil(1024).min(u32::MAX as u64) as u32
 }
 
 /// Runs `f` on tokio's blocking pool; a panic becomes an `internal` error.

@@ -808,10 +808,13 @@ fn viewer_frame_view(entry: &Entry, frame: &Frame, solved: &Solved) -> Result<Vi
         Some(r) => Some(RestView { points: flat(r), cut_points: cut_points(b, r), curvenets: poses(&[])? }),
         None => None,
     };
+    // The solved points are already the wire's f32; the cut-vertices are
+    // placed on the surface posed at those (the viewer draws in f32).
+    let points: Vec<[f64; 3]> = solved.points.iter().map(|p| p.map(f64::from)).collect();
     Ok(ViewerFrame {
         time: None,
-        cut_points: cut_points(b, &solved.points),
-        points: flat(&solved.points),
+        cut_points: cut_points(b, &points),
+        points: solved.points.as_flattened().to_vec(),
         solve_ms: solved.solve_ms,
         curvenets,
         rest,
