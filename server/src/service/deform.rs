@@ -48,6 +48,7 @@ pub(crate) async fn deform(
             Ok(DeformResponse { binding_id: entry.id.clone(), cached, frame: frame.into_response() })
         },
     )
-    .await?;
+    .await?
+    .0;
     Ok(Json(answer).into_response())
 }

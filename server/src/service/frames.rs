@@ -26,7 +26,7 @@ use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
 use crate::openapi::BinaryFrames;
-use crate::solve::{HeldBody, Numbering, solve_batch};
+use crate::solve::{HeldBody, Numbering, solve_frames};
 use crate::state::AppState;
 
 /// A frame's input, in f64, whatever its wire form.
@@ -164,7 +164,7 @@ pub(crate) async fn answer(
     } else {
         Numbering::One
     };
-    let (out, memory) = solve_batch(
+    let (out, memory) = solve_frames(
         state,
         admission,
         entry,

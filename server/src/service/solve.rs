@@ -59,23 +59,9 @@ impl Numbering {
 /// it, not all of it; and a batch whose client goes away (this future is
 /// dropped) stops after the wave it is in. A batch first reserves what it
 /// will hold in `--max-batch-memory` ([`AppState::batch_memory`]), until
-/// its answer is sent: [`solve_batch`] returns the reservation for the
-/// answer's body to hold ([`HeldBody`]).
+/// its answer is sent: returned beside the answer (`None` for one frame)
+/// for the answer's body to hold ([`HeldBody`]).
 pub(crate) async fn solve_frames<T: Send + 'static>(
-    state: &AppState,
-    admission: Admission,
-    entry: Arc<Entry>,
-    numbering: Numbering,
-    read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
-    answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
-) -> Result<T, ServiceError> {
-    Ok(solve_batch(state, admission, entry, numbering, read, answer).await?.0)
-}
-
-/// [`solve_frames`], also returning a batch's reservation of
-/// `--max-batch-memory` (`None` for one frame), to be held until its answer
-/// is sent.
-pub(crate) async fn solve_batch<T: Send + 'static>(
     state: &AppState,
     admission: Admission,
     entry: Arc<Entry>,

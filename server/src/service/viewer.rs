@@ -770,6 +770,7 @@ async fn solve_frame(
         },
     )
     .await
+    .map(|(view, _)| view)
 }
 
 /// What the viewer draws of a solved frame: its points and cut-vertices,
