@@ -989,6 +989,13 @@ fn a_bake_stops_when_its_client_leaves() {
         .filter(|n| n.contains("long"))
         .collect();
     assert!(left.is_empty(), "{left:?}");
+    // And says so in the log, naming the stage.
+    let t = Instant::now();
+    while !server.log().contains("bake stopped before writing anything") {
+        assert!(t.elapsed() < Duration::from_secs(5), "no log line for the stopped bake:\n{}", server.log());
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(server.log().contains("shot.usda"), "{}", server.log());
     eprintln!("the bake stopped {stopped:?} after its client left");
     let _ = std::fs::remove_dir_all(&root);
 }

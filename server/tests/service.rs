@@ -594,6 +594,23 @@ async fn every_bad_input_gets_its_status_and_code_and_a_good_frame_still_works()
         let (ok, _, body) = send(&app, good()).await;
         assert_eq!(ok, StatusCode::OK, "after {name}: {}", String::from_utf8_lossy(&body));
     }
+    // A pool of the wrong size names its curvenet in details, in both forms.
+    let short_json = post_json(&uri, &json!({"posed": [&pool[1..]]}));
+    let short_binary = post_binary(
+        &uri,
+        binary_frame(
+            &json!({"arrays": [{"name": "posed", "index": 0, "shape": [np - 1, 3]}]}),
+            &[&flat_f32(&pool[1..])],
+        ),
+    );
+    for (form, req) in [("JSON", short_json), ("binary", short_binary)] {
+        let (status, _, body) = send(&app, req).await;
+        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{form}: {v}");
+        assert_eq!(v["code"], "count_mismatch", "{form}: {v}");
+        assert_eq!(v["details"]["curvenet"], 0, "{form}: {v}");
+        assert_eq!(v["details"]["what"], "posed", "{form}: {v}");
+    }
     // A bad frame in a batch is named by its index.
     let batch = json!({"frames": [{}, {"posed": [&pool[2..]]}]});
     let (status, _, body) = send(&app, post_json(&format!("/v1/bindings/{id}/frames:batch"), &batch)).await;

@@ -282,6 +282,24 @@ async fn bad_knots_are_422_naming_them() {
     assert_eq!(v["details"]["control_point"], tangent);
     assert!(v["message"].as_str().unwrap().contains(&tangent.to_string()), "{}", v["message"]);
 
+    // A value past the service's coordinate bound (1e15), in any field.
+    for (field, value) in [
+        ("translate", json!([0.0, 2e15, 0.0])),
+        ("rotate", json!([0.0, 0.0, -1e300])),
+        ("scale", json!([1.0, 1.0, 1e16])),
+    ] {
+        let frame = json!({"adjustments": [{"curvenet": 0, "knot": good},
+                                           {"curvenet": 0, "knot": knots()[1], field: value}]});
+        let (status, body) = send(&app, post_json(&uri, &frame)).await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {}", String::from_utf8_lossy(&body));
+        let v = details(&body);
+        assert_eq!(v["code"], "invalid_parameter", "{field}: {v}");
+        assert_eq!(v["details"]["adjustment"], 1, "{field}: {v}");
+        assert_eq!(v["details"]["curvenet"], 0, "{field}: {v}");
+        assert_eq!(v["details"]["control_point"], knots()[1], "{field}: {v}");
+        assert_eq!(v["details"]["what"], format!("adjustments[1].{field}"), "{field}: {v}");
+    }
+
     // Out of range.
     let frame = json!({"adjustments": [{"curvenet": 0, "knot": pool + 7}]});
     let (status, body) = send(&app, post_json(&uri, &frame)).await;

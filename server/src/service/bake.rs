@@ -202,11 +202,21 @@ pub(crate) async fn bake(
             BakeFailure::Retry(m) => ServiceError::new(Code::Unavailable, m),
             BakeFailure::Forbidden(m) => ServiceError::new(Code::PathForbidden, m),
             BakeFailure::Limit(m) => ServiceError::new(Code::LimitExceeded, m),
-            // Only the drain deadline leaves anyone to read this.
-            BakeFailure::Cancelled => ServiceError::new(
-                Code::Unavailable,
-                "the server is shutting down and stopped the bake before it wrote anything; retry",
-            ),
+            // Only the drain deadline leaves anyone to read this; the log
+            // says it either way (this closure runs to its end even when the
+            // handler was dropped with its client).
+            BakeFailure::Cancelled => {
+                tracing::warn!(
+                    stage = %job2.stage.display(),
+                    output = %job2.output.display(),
+                    elapsed_ms = t.elapsed().as_secs_f64() * 1e3,
+                    "bake stopped before writing anything: its client went away or the server is draining"
+                );
+                ServiceError::new(
+                    Code::Unavailable,
+                    "the server is shutting down and stopped the bake before it wrote anything; retry",
+                )
+            }
         })
     })
     .await;

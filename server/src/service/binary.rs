@@ -281,6 +281,10 @@ fn plan_frame(h: &BinaryFrameHeader, expected: &Expected<'_>) -> Result<Vec<Plan
                 d.what = Some(name.into());
                 d.expected = Some(want);
                 d.got = usize::try_from(rows).ok();
+                // As the JSON form's: a pool's mismatch names its curvenet.
+                if let Kind::Posed(k) = kind {
+                    d.curvenet = Some(k as u32);
+                }
             }));
         }
         plan.push(Planned { kind, rows: want });

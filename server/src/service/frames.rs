@@ -363,6 +363,7 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         }
         check_points(cage, what)?;
     }
+    check_adjustment_values(&frame.adjustments)?;
     if let Some(w) = &frame.weights {
         let n_shapes = entry.n_shapes();
         if w.len() != n_shapes {
@@ -471,6 +472,44 @@ pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usiz
             checked.map_err(|e| (i, e))
         })
         .collect()
+}
+
+/// Refuses an adjustment value beyond the service's coordinate bound (core
+/// refuses only non-finite ones): translates, scales, rotate angles and
+/// tangent translates past 1e15 are `invalid_parameter`, naming
+/// `adjustments[i].field` and the adjustment, curvenet and knot in details.
+fn check_adjustment_values(adjustments: &[Adjustment]) -> Result<(), ServiceError> {
+    for (i, a) in adjustments.iter().enumerate() {
+        let rotate: &[f64] = match &a.rotate {
+            Rotate::EulerXyz(e) => e,
+            Rotate::Quaternion(q) => q,
+        };
+        let fields: [(&str, &[f64]); 4] = [
+            ("translate", &a.translate),
+            ("rotate", rotate),
+            ("scale", &a.scale),
+            ("tangent_translates", a.tangent_translates.as_flattened()),
+        ];
+        for (field, values) in fields {
+            // A non-finite value is core's to refuse (InvalidAdjustment).
+            if let Some(x) = values.iter().find(|x| x.is_finite() && x.abs() > MAX_COORDINATE) {
+                return Err(ServiceError::new(
+                    Code::InvalidParameter,
+                    format!(
+                        "adjustments[{i}] (curvenet {}, knot {}): its {field} has {x:e}, beyond {MAX_COORDINATE:e}",
+                        a.curvenet, a.knot
+                    ),
+                )
+                .detail(|d| {
+                    d.adjustment = Some(i);
+                    d.curvenet = Some(a.curvenet as u32);
+                    d.control_point = Some(a.knot);
+                    d.what = Some(format!("adjustments[{i}].{field}"));
+                }));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// An error about adjustment `i` also names its curvenet (core's
