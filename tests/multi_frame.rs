@@ -241,8 +241,9 @@ fn name_seed(rel: &str) -> u64 {
 /// of every fixed-width size (whose constraint rows are made lane by lane,
 /// `Binding::lanes_rows`): every frame gives its single solve's bits. A
 /// pose is a random rotation and translation of the whole curvenet, a
-/// random smooth warp, and per-point noise of up to 0.3% of the diagonal.
-/// Replay a failure with the seed it prints: `CURVENET_GROUP_SEED=<seed>`.
+/// random smooth warp, and per-point noise of up to 0.3% of the diagonal;
+/// the same poses again, each frame with a random rest pose (the bake over
+/// skinning). Replay a failure with the seed it prints: `CURVENET_GROUP_SEED=<seed>`.
 /// Then a group holding a collapsed curvenet fails as that frame alone
 /// does, naming it.
 #[test]
@@ -289,36 +290,66 @@ fn random_poses_in_groups_match_single_frames_on_every_corpus_stage() {
         let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
             poses.iter().map(|p| p.iter().map(|x| Some(x.as_slice())).collect()).collect();
         let frames: Vec<Frame<'_>> = posed.iter().map(|p| Frame { posed: p, ..Default::default() }).collect();
-        let single: Vec<Vec<[f64; 3]>> = frames
-            .iter()
-            .map(|f| {
-                let mut out = vec![[0.0; 3]; n];
-                b.deformer
-                    .frame(f, &mut out, None)
-                    .unwrap_or_else(|e| panic!("{rel} (seed {seed}): a pose failed: {e}"));
-                out
+        // The same poses, each frame also with a random rest pose: the
+        // projection pose moved rigidly and warped smoothly (knot tracking,
+        // rows and Poisson right-hand sides frame by frame in the group).
+        let points = b.deformer.projection_points();
+        let rests: Vec<Vec<[f64; 3]>> = (0..8)
+            .map(|_| {
+                let rot =
+                    glam::DMat3::from_rotation_z(rng.range(-1.0, 1.0)) * glam::DMat3::from_rotation_x(rng.signed());
+                let shift = glam::DVec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.2 * d;
+                let (wave, freq) = (rng.range(0.0, 0.02) * d, rng.range(1.0, 6.0) / d);
+                points
+                    .iter()
+                    .map(|&p| {
+                        let p = glam::DVec3::from_array(p);
+                        let warp = glam::DVec3::new((p.y * freq).sin(), 0.0, (p.x * freq).cos()) * wave;
+                        (rot * (p + warp) + shift).to_array()
+                    })
+                    .collect()
             })
             .collect();
-        for k in [2usize, 4, 8, 16] {
-            let before = curvenet_core::counters::lane_row_groups();
-            let picked: Vec<usize> = (0..frames.len()).cycle().skip(k / 2).take(2 * k).collect();
-            let group: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
-            let mut points = vec![vec![[f64::NAN; 3]; n]; picked.len()];
-            let mut outs: Vec<FrameOut<'_>> =
-                points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
-            for (g, o) in group.chunks(k).zip(outs.chunks_mut(k)) {
-                b.deformer.frames(g, o).unwrap_or_else(|e| panic!("{rel} (seed {seed}): groups of {k}: {e}"));
-            }
-            for (j, &i) in picked.iter().enumerate() {
+        let rest_frames: Vec<Frame<'_>> =
+            posed.iter().zip(&rests).map(|(p, r)| Frame { posed: p, rest: Some(r), ..Default::default() }).collect();
+        // Rows lane by lane (Binding::lanes_rows) only for the plain poses.
+        for (frames, what, lanes) in [(&frames, "poses", true), (&rest_frames, "poses with rest poses", false)] {
+            let single: Vec<Vec<[f64; 3]>> = frames
+                .iter()
+                .map(|f| {
+                    let mut out = vec![[0.0; 3]; n];
+                    b.deformer
+                        .frame(f, &mut out, None)
+                        .unwrap_or_else(|e| panic!("{rel} (seed {seed}): one of the {what} failed: {e}"));
+                    out
+                })
+                .collect();
+            for k in [2usize, 4, 8, 16] {
+                let before = curvenet_core::counters::lane_row_groups();
+                let picked: Vec<usize> = (0..frames.len()).cycle().skip(k / 2).take(2 * k).collect();
+                let group: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
+                let mut points = vec![vec![[f64::NAN; 3]; n]; picked.len()];
+                let mut outs: Vec<FrameOut<'_>> =
+                    points.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+                for (g, o) in group.chunks(k).zip(outs.chunks_mut(k)) {
+                    b.deformer
+                        .frames(g, o)
+                        .unwrap_or_else(|e| panic!("{rel} (seed {seed}): {what} in groups of {k}: {e}"));
+                }
+                for (j, &i) in picked.iter().enumerate() {
+                    assert!(
+                        same_bits(points[j].as_flattened(), single[i].as_flattened()),
+                        "{rel}: {what}: {i} in groups of {k} differs from its single frame by {:e} (relative); \
+                         replay with CURVENET_GROUP_SEED={base}",
+                        relative(points[j].as_flattened(), single[i].as_flattened())
+                    );
+                }
+                let made = curvenet_core::counters::lane_row_groups() - before;
                 assert!(
-                    same_bits(points[j].as_flattened(), single[i].as_flattened()),
-                    "{rel}: pose {i} in groups of {k} differs from its single frame by {:e} (relative); \
-                     replay with CURVENET_GROUP_SEED={base}",
-                    relative(points[j].as_flattened(), single[i].as_flattened())
+                    !lanes || made >= 2,
+                    "{rel}: {what} in groups of {k} made their rows lane by lane {made} times"
                 );
             }
-            let made = curvenet_core::counters::lane_row_groups() - before;
-            assert!(made >= 2, "{rel}: groups of {k} made their rows lane by lane {made} times");
         }
         // A curvenet collapsed to one point in frame 5 of a group of 8.
         let collapsed: Vec<Vec<[f64; 3]>> = b.nets.iter().map(|net| vec![net.pool[0]; net.pool.len()]).collect();

@@ -76,15 +76,19 @@ fn frames_in_groups() {
     // A group all in the projection pose: its constraint rows are made lane
     // by lane in the group's block (`Binding::lanes_rows`).
     let plain = [frames[0], frames[2], frames[0], frames[2]];
+    // A group whose every frame has its own rest pose (a bake over skinning).
+    let rested = [frames[1], frames[3], frames[3], frames[1]];
     // Warm-up: the group's workspaces, each with the buffers its frames' modes need.
     deformer.frames(&frames, &mut outs).unwrap();
     deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
     deformer.frames(&plain, &mut outs).unwrap();
+    deformer.frames(&rested, &mut outs).unwrap();
     let before = counting::allocations();
     for _ in 0..3 {
         deformer.frames(&frames, &mut outs).unwrap();
         deformer.frames(&frames[1..3], &mut outs[1..3]).unwrap();
         deformer.frames(&plain, &mut outs).unwrap();
+        deformer.frames(&rested, &mut outs).unwrap();
     }
     let after = counting::allocations();
     assert_eq!(after - before, 0, "Deformer::frames allocated");

@@ -83,6 +83,12 @@ fn bench_json_reports_the_hand_1k4_fixture() {
     let over = positive_finite(m, "batch_over_reference");
     let want = row["per_frame_ms"].as_f64().unwrap() / m["reference_ms"].as_f64().unwrap();
     assert!((over - want).abs() <= 1e-9 * want, "batch_over_reference {over}, per frame / reference {want}");
+    // Groups of 8 frames with their own rest pose, beside them.
+    let rest = &m["rest_batch"];
+    assert_eq!(count(rest, "k"), 8);
+    for key in ["per_frame_ms", "per_frame_over_reference", "frames_per_s"] {
+        positive_finite(rest, key);
+    }
     assert!(m["solve_min_ms"].as_f64() <= m["solve_ms"].as_f64());
     assert!(m["solve_ms"].as_f64() <= m["solve_max_ms"].as_f64());
     // No targets are set for the 1.4k hand; the frames stay close to the mesh in the neutral pose.

@@ -83,7 +83,9 @@
 //! `solve_ms`, `binding_ms`, all the other measurements under their field
 //! names (see `MeshBench`), `targets` (null for meshes the issue sets
 //! none for), `batch` (per K: `k`, `per_frame_ms`, `per_frame_over_reference`,
-//! `frames_per_s`), `batch_k`, `batch_frames_per_s` and `batch_over_reference`; one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
+//! `frames_per_s`), `batch_k`, `batch_frames_per_s`, `batch_over_reference` and
+//! `rest_batch` (the same figures for groups of 8 frames with their own rest
+//! pose); one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -662,7 +664,7 @@ fn bench_mesh(
     let solve_ms = deform_t.wall();
     let binding_ms = median(binding_wall);
     let (tri9_ms, tri3_ms, eval_ms, reference_ms) = (tri9_t.wall(), tri3_t.wall(), eval_t.wall(), reference_t.wall());
-    let batch = super::bench_batch::bench_batches(&deformer, &inputs, frames, threads, reference_ms)?;
+    let batch = super::bench_batch::bench_batches(&deformer, &inputs, &rest_pose, frames, threads, reference_ms)?;
     let solve_cpu = deform_t.cpu();
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
     let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);

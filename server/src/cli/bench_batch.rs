@@ -15,6 +15,11 @@
 //!
 //! `batch_k` is the K with the most frames/s, `batch_frames_per_s` its
 //! frames/s and `batch_over_reference` its per-frame time over `reference_ms`.
+//!
+//! `rest_batch`: the same figures for groups of [`REST_K`] frames that each
+//! carry their own rest pose (a bake over skinning or cloth: knot tracking,
+//! and rows and the Poisson right-hand side made frame by frame), beside
+//! the projection-pose groups above.
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -31,6 +36,8 @@ pub(super) const BATCH_KS: [usize; 6] = [1, 2, 4, 8, 16, 32];
 const MIN_GROUPS: usize = 5;
 /// Repetitions of each all-threads run.
 const REPEATS: usize = 3;
+/// The group size of the rest-pose row (the bake's default group).
+pub(super) const REST_K: usize = curvenet_core::DEFAULT_BATCH_FRAMES;
 
 /// One group size's figures.
 #[derive(Serialize, Clone, Copy)]
@@ -52,77 +59,97 @@ pub(super) struct BatchFigures {
     pub batch_frames_per_s: f64,
     /// `per_frame_ms` of `batch_k` over `reference_ms`.
     pub batch_over_reference: f64,
+    /// Groups of [`REST_K`] frames with their own rest pose.
+    pub rest_batch: BatchRow,
 }
 
 /// Measures every K of [`BATCH_KS`] on the bench's poses (`inputs`, cycled).
+/// `rest`: the rest pose of the rest-pose row.
 pub(super) fn bench_batches(
     deformer: &Deformer,
     inputs: &[Vec<Option<&[[f64; 3]]>>],
+    rest: &[[f64; 3]],
     frames: usize,
     threads: usize,
     reference_ms: f64,
 ) -> CliResult<BatchFigures> {
-    let err = |source| CliError::Core { context: "bench frames in groups".into(), source };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| CliError::Input(format!("cannot start {threads} bench threads: {e}")))?;
-    let n = deformer.n_vertices();
     let mut rows = Vec::with_capacity(BATCH_KS.len());
     for k in BATCH_KS {
-        // One thread: groups of k consecutive poses (cycling).
-        let groups = MIN_GROUPS.max(frames.div_ceil(k));
-        let all: Vec<Frame<'_>> =
-            (0..(groups + 1) * k).map(|i| Frame { posed: &inputs[i % inputs.len()], ..Frame::default() }).collect();
-        let mut buffers = vec![vec![[0.0; 3]; n]; k];
-        let mut times = Vec::with_capacity(groups);
-        for (g, group) in all.chunks(k).enumerate() {
-            let mut outs: Vec<FrameOut<'_>> =
-                buffers.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
-            let t = Instant::now();
-            deformer.frames(group, &mut outs).map_err(|e| err(e.error))?;
-            if g > 0 {
-                times.push(t.elapsed().as_secs_f64() * 1e3 / k as f64);
-            }
-        }
-        let per_frame_ms = median(times);
-        // All threads.
-        let jobs = frames.max(4 * k * threads).div_ceil(k) * k;
-        let all: Vec<Frame<'_>> =
-            (0..jobs).map(|i| Frame { posed: &inputs[i % inputs.len()], ..Frame::default() }).collect();
-        let buffers: Vec<Mutex<Vec<Vec<[f64; 3]>>>> =
-            (0..threads).map(|_| Mutex::new(vec![vec![[0.0; 3]; n]; k])).collect();
-        let run = |frames: &[Frame<'_>]| {
-            pool.install(|| {
-                frames.par_chunks(k).with_max_len(1).try_for_each(|group| {
-                    let slot = rayon::current_thread_index().unwrap_or(0);
-                    let mut buffers = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
-                    let mut outs: Vec<FrameOut<'_>> =
-                        buffers.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
-                    deformer.frames(group, &mut outs).map_err(|e| e.error)
-                })
-            })
-        };
-        run(&all[..(2 * k * threads).min(jobs)]).map_err(err)?;
-        let mut rates = Vec::with_capacity(REPEATS);
-        for _ in 0..REPEATS {
-            let t = Instant::now();
-            run(&all).map_err(err)?;
-            rates.push(jobs as f64 / t.elapsed().as_secs_f64());
-        }
-        rows.push(BatchRow {
-            k,
-            per_frame_ms,
-            per_frame_over_reference: per_frame_ms / reference_ms.max(f64::MIN_POSITIVE),
-            frames_per_s: median(rates),
-        });
+        rows.push(measure(deformer, &pool, inputs, None, k, frames, threads, reference_ms)?);
     }
+    let rest_batch = measure(deformer, &pool, inputs, Some(rest), REST_K, frames, threads, reference_ms)?;
     let best = rows.iter().copied().max_by(|a, b| a.frames_per_s.total_cmp(&b.frames_per_s)).expect("K values");
     Ok(BatchFigures {
         batch_k: best.k,
         batch_frames_per_s: best.frames_per_s,
         batch_over_reference: best.per_frame_over_reference,
         batch: rows,
+        rest_batch,
+    })
+}
+
+/// One group size's figures: groups of `k` of the poses, each frame with
+/// the rest pose `rest` when given.
+#[allow(clippy::too_many_arguments)]
+fn measure(
+    deformer: &Deformer,
+    pool: &rayon::ThreadPool,
+    inputs: &[Vec<Option<&[[f64; 3]]>>],
+    rest: Option<&[[f64; 3]]>,
+    k: usize,
+    frames: usize,
+    threads: usize,
+    reference_ms: f64,
+) -> CliResult<BatchRow> {
+    let err = |source| CliError::Core { context: "bench frames in groups".into(), source };
+    let n = deformer.n_vertices();
+    let frame = |i: usize| Frame { posed: &inputs[i % inputs.len()], rest, ..Frame::default() };
+    // One thread: groups of k consecutive poses (cycling).
+    let groups = MIN_GROUPS.max(frames.div_ceil(k));
+    let all: Vec<Frame<'_>> = (0..(groups + 1) * k).map(frame).collect();
+    let mut buffers = vec![vec![[0.0; 3]; n]; k];
+    let mut times = Vec::with_capacity(groups);
+    for (g, group) in all.chunks(k).enumerate() {
+        let mut outs: Vec<FrameOut<'_>> = buffers.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+        let t = Instant::now();
+        deformer.frames(group, &mut outs).map_err(|e| err(e.error))?;
+        if g > 0 {
+            times.push(t.elapsed().as_secs_f64() * 1e3 / k as f64);
+        }
+    }
+    let per_frame_ms = median(times);
+    // All threads.
+    let jobs = frames.max(4 * k * threads).div_ceil(k) * k;
+    let all: Vec<Frame<'_>> = (0..jobs).map(frame).collect();
+    let buffers: Vec<Mutex<Vec<Vec<[f64; 3]>>>> =
+        (0..threads).map(|_| Mutex::new(vec![vec![[0.0; 3]; n]; k])).collect();
+    let run = |frames: &[Frame<'_>]| {
+        pool.install(|| {
+            frames.par_chunks(k).with_max_len(1).try_for_each(|group| {
+                let slot = rayon::current_thread_index().unwrap_or(0);
+                let mut buffers = buffers[slot].lock().unwrap_or_else(|e| e.into_inner());
+                let mut outs: Vec<FrameOut<'_>> =
+                    buffers.iter_mut().map(|p| FrameOut { points: p, gradients: None }).collect();
+                deformer.frames(group, &mut outs).map_err(|e| e.error)
+            })
+        })
+    };
+    run(&all[..(2 * k * threads).min(jobs)]).map_err(err)?;
+    let mut rates = Vec::with_capacity(REPEATS);
+    for _ in 0..REPEATS {
+        let t = Instant::now();
+        run(&all).map_err(err)?;
+        rates.push(jobs as f64 / t.elapsed().as_secs_f64());
+    }
+    Ok(BatchRow {
+        k,
+        per_frame_ms,
+        per_frame_over_reference: per_frame_ms / reference_ms.max(f64::MIN_POSITIVE),
+        frames_per_s: median(rates),
     })
 }
 
@@ -156,6 +183,16 @@ pub(super) fn text_table<'a>(
                 if r.k == b.batch_k { "  best" } else { "" }
             );
         }
+        let r = &b.rest_batch;
+        let _ = writeln!(
+            s,
+            "{:<10} {:>6} {:>14.3} {:>10.2} {:>12.1}  each frame with its own rest pose",
+            mesh,
+            format!("{}+rest", r.k),
+            r.per_frame_ms,
+            r.per_frame_over_reference,
+            r.frames_per_s,
+        );
     }
     s
 }
