@@ -1190,9 +1190,17 @@ fn batches_in_flight_hold_at_most_the_batch_memory_together() {
     until_at_least(&server, "curvenet_frames_solved_total", 100.0, Duration::from_secs(60));
     let reserved = server.metric("curvenet_batch_memory_bytes");
     assert!(reserved >= (100 * vertices * 24) as f64 && reserved <= (64 << 20) as f64, "{reserved} bytes reserved");
-    // Another such batch waits in line for the queue timeout, then 503 naming the limit.
+    // Another such batch waits in line for the queue timeout, then 503 naming
+    // the limit; while it waits, only what is granted is counted.
     let t = Instant::now();
-    let b = post_binary(addr, &path, &body);
+    let waiting = {
+        let (path, body) = (path.clone(), body.clone());
+        std::thread::spawn(move || post_binary(addr, &path, &body))
+    };
+    std::thread::sleep(Duration::from_millis(200));
+    let counted = server.metric("curvenet_batch_memory_bytes");
+    assert!(counted <= reserved + (1 << 20) as f64, "{counted} bytes counted while a batch waits, {reserved} held");
+    let b = waiting.join().unwrap();
     assert_eq!((b.status, b.code().as_str()), (503, "saturated"), "{}", b.text());
     assert!(b.text().contains("--max-batch-memory"), "{}", b.text());
     assert!(b.head.to_ascii_lowercase().contains("retry-after"), "{}", b.head);
@@ -1208,4 +1216,38 @@ fn batches_in_flight_hold_at_most_the_batch_memory_together() {
     }
     let b = post_binary(addr, &path, &body);
     assert_eq!(b.status, 200, "{}", b.text());
+}
+
+#[test]
+fn single_frames_find_permits_while_batches_fill_the_server() {
+    let _serial = one_at_a_time();
+    // 4 solve permits: batches may hold at most 2 of them (a slot each, and
+    // spare permits only while half stay free), so a single frame never
+    // waits in line for a permit. Each batch held one or two of them before:
+    // single frames waited 1.1-1.5 s for a permit here, and get 503 after
+    // the 0.5 s queue timeout.
+    let server = Server::start(&["--max-solves", "4", "--max-batch-bytes", "1GiB", "--queue-timeout", "0.5"]);
+    let addr = server.addr;
+    let req = hand_22k();
+    let id = bind(addr, req);
+    let body = std::sync::Arc::new(binary_batch(req, 200));
+    let batches: Vec<_> = (0..6)
+        .map(|_| {
+            let (body, id) = (body.clone(), id.clone());
+            std::thread::spawn(move || post_binary(addr, &format!("/v1/bindings/{id}/frames:batch"), &body).status)
+        })
+        .collect();
+    until_at_least(&server, "curvenet_frames_solved_total", 1.0, Duration::from_secs(60));
+    let pools: Vec<_> = req.curvenets.iter().map(|c| c.pool.clone()).collect();
+    let mut singles = Vec::new();
+    for _ in 0..5 {
+        let t = Instant::now();
+        let a = post_json(addr, &format!("/v1/bindings/{id}/frames"), &json!({ "posed": pools }));
+        singles.push((a.status, t.elapsed()));
+    }
+    let statuses: Vec<u16> = batches.into_iter().map(|h| h.join().unwrap()).collect();
+    eprintln!("single frames {singles:?}; batches {statuses:?}");
+    assert!(singles.iter().all(|(s, _)| *s == 200), "a single frame was refused: {singles:?}");
+    assert!(statuses.iter().all(|s| [200, 503].contains(s)), "{statuses:?}");
+    assert!(statuses.contains(&200), "{statuses:?}");
 }

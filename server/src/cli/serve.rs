@@ -120,7 +120,13 @@ fn parse_bytes(s: &str) -> Result<u64, String> {
         "gib" => 1024.0 * 1024.0 * 1024.0,
         other => return Err(format!("unknown unit {other:?} (B, KB, KiB, MB, MiB, GB, GiB)")),
     };
-    Ok((num * scale) as u64)
+    let bytes = num * scale;
+    // Beyond 2^63 bytes (8 EiB) is no memory a machine has: a typo, refused
+    // rather than saturated to u64::MAX.
+    if !(bytes.is_finite() && bytes < 9.2e18) {
+        return Err(format!("{s:?} is too large a byte count (at most 8 EiB)"));
+    }
+    Ok(bytes as u64)
 }
 
 pub fn run(args: &Args) -> CliResult {
@@ -193,18 +199,30 @@ pub fn run(args: &Args) -> CliResult {
     let drained = runtime.block_on(async {
         // Listen for the signals before announcing the address: a SIGTERM
         // right after startup must stop the server, not kill the process.
-        let shutdown = shutdown_signal().map_err(|e| CliError::Io { context: "installing signal handlers".into(), source: e })?;
+        let shutdown =
+            shutdown_signal().map_err(|e| CliError::Io { context: "installing signal handlers".into(), source: e })?;
         let listener = tokio::net::TcpListener::bind(&args.addr)
             .await
             .map_err(|e| CliError::Io { context: format!("binding {}", args.addr), source: e })?;
-        let addr = listener.local_addr().map_err(|e| CliError::Io { context: "reading the bound address".into(), source: e })?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| CliError::Io { context: "reading the bound address".into(), source: e })?;
         println!("listening on http://{addr}");
         if !args.open_stages.is_empty() {
             println!("viewer: http://{addr}/viewer");
         }
         use std::io::Write as _;
         let _ = std::io::stdout().flush();
-        tracing::info!(%addr, auth = state.config().token.is_some(), cache_bytes = state.config().cache_bytes, "curvenet serve");
+        let config = state.config();
+        tracing::info!(
+            %addr,
+            auth = config.token.is_some(),
+            cache_bytes = config.cache_bytes,
+            max_solves = config.max_solves,
+            max_batch_bytes = config.max_batch_bytes,
+            max_batch_memory = config.max_batch_memory,
+            "curvenet serve"
+        );
         curvenet_server::run(listener, state, shutdown)
             .await
             .map_err(|e| CliError::Io { context: format!("serving on {addr}"), source: e })
@@ -543,4 +561,19 @@ fn read_frame(
         request: FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() },
         adjustments,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_bytes;
+
+    #[test]
+    fn byte_counts_parse_and_overflow_is_refused() {
+        assert_eq!(parse_bytes("1536MiB"), Ok(1536 << 20));
+        assert_eq!(parse_bytes("2GiB"), Ok(2 << 30));
+        assert_eq!(parse_bytes("0"), Ok(0));
+        for bad in ["18446744073709551616", "9999999999999999999999KiB", "1e400", "12XB", ""] {
+            assert!(parse_bytes(bad).is_err(), "{bad:?} parsed as {:?}", parse_bytes(bad));
+        }
+    }
 }

@@ -9,7 +9,7 @@ use axum::response::Response;
 use curvenet_schema::wire::{ErrorBody, FrameBatchRequest, FrameBatchResponse};
 
 use crate::error::ServiceError;
-use crate::extract::{Admitted, CachedBinding, ContentType, JsonOrBinary, SizedBody};
+use crate::extract::{Admission, CachedBinding, ContentType, JsonOrBinary, SizedBody};
 use crate::openapi::BinaryFrames;
 use crate::state::AppState;
 
@@ -38,8 +38,15 @@ pub(crate) async fn post_frames_batch(
     State(state): State<AppState>,
     ContentType(form, _): ContentType<JsonOrBinary>,
     CachedBinding(entry): CachedBinding,
-    Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
+    SizedBody(bytes): SizedBody,
 ) -> Result<Response, ServiceError> {
-    let admission = admission.widen(&state);
-    crate::frames::answer(&state, entry, form, bytes, admission, true).await
+    // Once its body is read, each in line up to --queue-timeout: a batch
+    // slot (batches hold at most half the solve permits, so single frames
+    // find theirs), memory for its body and its frames before they are
+    // parsed (so those waiting hold only their bodies), then a solve
+    // permit, and what permits are free besides.
+    let _slot = state.batch_slot().await?;
+    let memory = state.batch_memory(bytes.len() as u64 + crate::frames::input_bound(form, bytes.len())).await?;
+    let admission = Admission::one(&state).await?.widen(&state);
+    crate::frames::answer(&state, entry, form, bytes, admission, true, Some(memory)).await
 }

@@ -42,6 +42,7 @@ pub(crate) async fn deform(
         admission,
         entry,
         Numbering::Named("frame"),
+        None,
         move |_| Ok(vec![frame]),
         move |entry, solved| {
             let frame = solved.into_iter().next().ok_or_else(|| ServiceError::internal("a deform solved no frame"))?;

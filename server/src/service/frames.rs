@@ -27,7 +27,7 @@ use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
 use crate::openapi::BinaryFrames;
 use crate::solve::{HeldBody, Numbering, solve_frames};
-use crate::state::AppState;
+use crate::state::{AppState, BatchMemory};
 
 /// A frame's input, in f64, whatever its wire form.
 #[derive(Debug, Clone, Default)]
@@ -145,11 +145,11 @@ pub(crate) async fn post_frames(
     CachedBinding(entry): CachedBinding,
     Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
 ) -> Result<Response, ServiceError> {
-    answer(&state, entry, form, bytes, admission, false).await
+    answer(&state, entry, form, bytes, admission, false, None).await
 }
 
 /// Parses, solves and encodes the frames of one request (`batch`: the
-/// `frames:batch` form), through the one solve helper.
+/// `frames:batch` form, holding `memory`), through the one solve helper.
 pub(crate) async fn answer(
     state: &AppState,
     entry: Arc<Entry>,
@@ -157,6 +157,7 @@ pub(crate) async fn answer(
     bytes: Bytes,
     admission: Admission,
     batch: bool,
+    memory: Option<BatchMemory>,
 ) -> Result<Response, ServiceError> {
     let max_batch_bytes = state.config().max_batch_bytes;
     let numbering = if batch {
@@ -169,6 +170,7 @@ pub(crate) async fn answer(
         admission,
         entry,
         numbering,
+        memory,
         move |entry| parse(entry, form, &bytes, batch, max_batch_bytes),
         move |_, solved| encode(form, batch, solved),
     )
@@ -178,6 +180,14 @@ pub(crate) async fn answer(
         Form::Binary => HeaderValue::from_static(binary::CONTENT_TYPE),
     };
     Ok(([(header::CONTENT_TYPE, content_type)], axum::body::Body::new(HeldBody::new(out, memory))).into_response())
+}
+
+/// About the most memory the frames parsed from a body of `len` bytes hold
+/// (reserved before parsing a batch, `--max-batch-memory`): binary f32
+/// become f64, twice their bytes; a JSON number takes at least two
+/// characters with its separator, and its f64 eight bytes.
+pub(crate) fn input_bound(form: Form, len: usize) -> u64 {
+    len as u64 * if matches!(form, Form::Json) { 4 } else { 2 }
 }
 
 /// Parses the frames of a request (on the solve pool; checked afterwards by [`validate`]).

@@ -13,14 +13,13 @@ use std::sync::Arc;
 use std::task::{Context, Poll};
 
 use axum::body::Bytes;
-use tokio::sync::OwnedSemaphorePermit;
 
 use crate::cache::Entry;
 use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
 use crate::frames::{self, Frame, Solved};
 use crate::metrics::Metrics;
-use crate::state::AppState;
+use crate::state::{AppState, BatchMemory, blocking};
 
 /// Frames of one request solved together (`Deformer::frames`): the bake's
 /// default group size (core's measured default).
@@ -48,71 +47,83 @@ impl Numbering {
     }
 }
 
-/// Solves the frames `read` returns from `entry`, on the solve pool, and
-/// answers what `answer` makes of them (also on the pool: encoding a large
-/// batch is work too). `admission` is held until the answer is built.
+/// Solves the frames `read` returns from `entry` and answers what `answer`
+/// makes of them. `admission` is held until the answer is built.
 ///
-/// Each step is its own job on the pool: reading and checking the frames,
-/// then (a batch) each wave of groups (as many groups as the request holds
-/// permits), then the answer. The pool runs jobs in the order they were
-/// queued, so a frame posted while a long batch runs waits for one wave of
-/// it, not all of it; and a batch whose client goes away (this future is
-/// dropped) stops after the wave it is in. A batch first reserves what it
-/// will hold in `--max-batch-memory` ([`AppState::batch_memory`]), until
-/// its answer is sent: returned beside the answer (`None` for one frame)
-/// for the answer's body to hold ([`HeldBody`]).
+/// One frame (`/frames`, `/deform`, the viewer; the interactive path) is
+/// one job on the solve pool: read, check, `Deformer::frame`, answer.
+///
+/// A batch (`Numbering::Batch`) is read, checked and answered on tokio's
+/// blocking threads (parsing and encoding a large batch take seconds that
+/// are not solving), and solved on the pool a wave of groups at a time
+/// (one group per permit the request holds), each group its own job. The
+/// pool takes jobs first come, first served, so a frame posted while long
+/// batches run waits for about one group of each, not for them; a batch
+/// whose client goes away (this future is dropped) stops after its wave.
+/// A batch holds `memory` (reserved for its parsed frames before it was
+/// read, [`frames::input_bound`]), made its full size once its frames are
+/// read ([`batch_held_bytes`]: its frames, results and answer; waiting in
+/// line for the rest), and returned beside the answer for the answer's body
+/// to hold until it is sent ([`HeldBody`]).
 pub(crate) async fn solve_frames<T: Send + 'static>(
     state: &AppState,
     admission: Admission,
     entry: Arc<Entry>,
     numbering: Numbering,
+    memory: Option<BatchMemory>,
     read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
     answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
-) -> Result<(T, Option<OwnedSemaphorePermit>), ServiceError> {
+) -> Result<(T, Option<BatchMemory>), ServiceError> {
     let metrics = state.inner.metrics.clone();
     let parallel = admission.parallel();
     let _admission = admission;
-    let (frames, held) = {
-        let entry = entry.clone();
-        state
+    let Numbering::Batch { max_bytes, json } = numbering else {
+        let (out, solved) = state
             .on_pool(move || {
                 let frames = read(&entry)?;
-                for (i, f) in frames.iter().enumerate() {
-                    frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
-                }
-                let held = match numbering {
-                    Numbering::Batch { max_bytes, json } => {
-                        let answer = check_batch_size(&entry, &frames, max_bytes, json)?;
-                        Some(batch_held_bytes(&entry, &frames, answer))
-                    }
-                    _ => None,
+                let [frame] = &frames[..] else {
+                    return Err(ServiceError::internal(format!("one frame expected, {} read", frames.len())));
                 };
-                Ok((frames, held))
+                frames::validate(&entry, frame).map_err(|e| numbering.name(0, e))?;
+                let solved = vec![frames::solve(&entry, frame).map_err(|e| numbering.name(0, e))?];
+                record(&metrics, &solved);
+                let solve_ms = solved[0].solve_ms;
+                Ok((answer(&entry, solved)?, solve_ms))
             })
-            .await?
+            .await?;
+        let span = tracing::Span::current();
+        span.record("solve_ms", solved);
+        span.record("frames", 1);
+        return Ok((out, memory));
     };
-    let memory = match held {
-        Some(bytes) => Some(state.batch_memory(bytes).await?),
-        None => None,
-    };
-    let solved: Vec<Solved> = if frames.len() == 1 {
-        // One frame (the interactive path): Deformer::frame.
+    let (frames, held) = {
         let entry = entry.clone();
-        let frame = frames.into_iter().next().expect("one frame");
-        let solved =
-            state.on_pool(move || Ok(vec![frames::solve(&entry, &frame).map_err(|e| numbering.name(0, e))?])).await?;
-        record(&metrics, &solved);
-        solved
-    } else {
-        solve_in_waves(state, &entry, frames, numbering, parallel).await?
+        blocking(move || {
+            let frames = read(&entry)?;
+            for (i, f) in frames.iter().enumerate() {
+                frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
+            }
+            let answer = check_batch_size(&entry, &frames, max_bytes, json)?;
+            let held = batch_held_bytes(&entry, &frames, answer);
+            Ok((frames, held))
+        })
+        .await?
     };
+    let memory = match memory {
+        Some(mut m) => {
+            m.resize(held).await?;
+            m
+        }
+        None => state.batch_memory(held).await?,
+    };
+    let solved = solve_in_waves(state, &entry, frames, numbering, parallel).await?;
     let solve_ms: f64 = solved.iter().map(|s| s.solve_ms).sum();
     let n = solved.len();
-    let out = state.on_pool(move || answer(&entry, solved)).await?;
+    let out = blocking(move || answer(&entry, solved)).await?;
     let span = tracing::Span::current();
     span.record("solve_ms", solve_ms);
     span.record("frames", n);
-    Ok((out, memory))
+    Ok((out, Some(memory)))
 }
 
 /// Counts solved frames in the metrics (a batch's as each group is done).
@@ -214,13 +225,13 @@ fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Re
 /// idle timeout closes its connection.
 pub(crate) struct HeldBody {
     bytes: Bytes,
-    memory: Option<OwnedSemaphorePermit>,
+    memory: Option<BatchMemory>,
 }
 
 impl HeldBody {
     const CHUNK: usize = 1 << 20;
 
-    pub(crate) fn new(bytes: Vec<u8>, memory: Option<OwnedSemaphorePermit>) -> Self {
+    pub(crate) fn new(bytes: Vec<u8>, memory: Option<BatchMemory>) -> Self {
         Self { bytes: Bytes::from(bytes), memory }
     }
 }

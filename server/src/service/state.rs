@@ -108,6 +108,10 @@ pub(crate) struct Inner {
     pub permits: Arc<Semaphore>,
     /// `max_batch_memory` in KiB, one permit each ([`AppState::batch_memory`]).
     pub batch_memory: Arc<Semaphore>,
+    /// KiB of `batch_memory` granted now (the metric).
+    pub batch_kib_held: std::sync::atomic::AtomicUsize,
+    /// Batches admitted at once ([`AppState::batch_slot`]).
+    pub batch_slots: Arc<Semaphore>,
     pub pool: rayon::ThreadPool,
     pub metrics: Arc<Metrics>,
     pub token_hash: Option<blake3::Hash>,
@@ -147,6 +151,8 @@ impl AppState {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(config.max_solves.min(Semaphore::MAX_PERMITS))),
                 batch_memory: Arc::new(Semaphore::new(kib(config.max_batch_memory) as usize)),
+                batch_kib_held: Default::default(),
+                batch_slots: Arc::new(Semaphore::new(batch_slots(config.max_solves))),
                 token_hash: config.token.as_deref().map(|t| blake3::hash(t.as_bytes())),
                 config,
                 bake_roots,
@@ -202,21 +208,20 @@ impl AppState {
     }
 
     /// Reserves `bytes` of `--max-batch-memory` for a batch until the guard
-    /// is dropped. When the others in flight hold too much of it, the batch
-    /// waits in line (first come, first served) at most the queue timeout,
-    /// then `saturated`; a batch larger than all of it is `limit_exceeded`.
-    pub(crate) async fn batch_memory(&self, bytes: u64) -> Result<OwnedSemaphorePermit, ServiceError> {
+    /// is dropped (see [`BatchMemory::resize`] to change it). When the others
+    /// in flight hold too much of it, the batch waits in line (first come,
+    /// first served) at most the queue timeout, then `saturated`; a batch
+    /// larger than all of it is `limit_exceeded`.
+    pub(crate) async fn batch_memory(&self, bytes: u64) -> Result<BatchMemory, ServiceError> {
+        let permit = self.reserve_batch_memory(bytes).await?;
+        Ok(BatchMemory::new(self, permit))
+    }
+
+    async fn reserve_batch_memory(&self, bytes: u64) -> Result<OwnedSemaphorePermit, ServiceError> {
         let max = self.inner.config.max_batch_memory;
         let need = kib(bytes);
         if need > kib(max) {
-            return Err(ServiceError::new(
-                Code::LimitExceeded,
-                format!(
-                    "the batch would hold {bytes} bytes (its frames, results and answer), more than this server \
-                     lets all batches in flight hold together, {max} (--max-batch-memory, \
-                     CURVENET_MAX_BATCH_MEMORY); split it"
-                ),
-            ));
+            return Err(too_large_for_batch_memory(bytes, max));
         }
         let memory = self.inner.batch_memory.clone();
         if let Ok(p) = memory.clone().try_acquire_many_owned(need) {
@@ -234,22 +239,54 @@ impl AppState {
                 Code::Saturated,
                 format!(
                     "the batches in flight hold this server's memory for batches ({max} bytes, \
-                     --max-batch-memory) and this one, {bytes} bytes, waited {:.1} s for its share; \
-                     retry after the Retry-After delay, or send smaller batches",
+                     --max-batch-memory, CURVENET_MAX_BATCH_MEMORY) and this one, about {bytes} bytes, waited \
+                     {:.1} s for its share; retry after the Retry-After delay, or send smaller batches",
                     queue.as_secs_f64()
                 ),
             )
         })
     }
 
-    /// Bytes batches in flight hold now ([`Self::batch_memory`]).
+    /// Bytes batches in flight hold now (granted reservations only; one
+    /// waiting in line is not counted until it has all of its share).
     pub fn batch_memory_held(&self) -> u64 {
-        let total = kib(self.inner.config.max_batch_memory) as usize;
-        (total - self.inner.batch_memory.available_permits().min(total)) as u64 * 1024
+        self.inner.batch_kib_held.load(Ordering::SeqCst) as u64 * 1024
     }
 
-    /// Up to `n` more permits, only those free right now (a batch's extra parallelism).
+    /// A batch's place among the batches admitted at once (at most half of
+    /// `--max-solves`, so single frames and bindings always find permits):
+    /// waits in line at most the queue timeout, then `saturated`.
+    pub(crate) async fn batch_slot(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
+        let slots = self.inner.batch_slots.clone();
+        if let Ok(p) = slots.clone().try_acquire_owned() {
+            return Ok(p);
+        }
+        let queue = self.inner.config.queue_timeout;
+        let waited = if queue.is_zero() {
+            None
+        } else {
+            tokio::time::timeout(queue, slots.acquire_owned()).await.ok().and_then(Result::ok)
+        };
+        waited.ok_or_else(|| {
+            self.inner.metrics.saturated.increment(1);
+            ServiceError::new(
+                Code::Saturated,
+                format!(
+                    "this server is solving as many batches as it admits at once ({}, half of --max-solves) and \
+                     this one waited {:.1} s; retry after the Retry-After delay",
+                    batch_slots(self.inner.config.max_solves),
+                    queue.as_secs_f64()
+                ),
+            )
+        })
+    }
+
+    /// Up to `n` more permits, only those free right now and only while
+    /// half of all of them stay free (a batch's extra parallelism must not
+    /// take the permits single frames wait for).
     pub(crate) fn spare_permits(&self, n: u32) -> Option<OwnedSemaphorePermit> {
+        let keep = self.inner.config.max_solves.min(Semaphore::MAX_PERMITS) / 2;
+        let n = (n as usize).min(self.inner.permits.available_permits().saturating_sub(keep)) as u32;
         (1..=n).rev().find_map(|k| self.inner.permits.clone().try_acquire_many_owned(k).ok())
     }
 
@@ -297,6 +334,64 @@ impl AppState {
                 Err(_) => Err(ServiceError::internal("the solve pool dropped a job")),
             }
         }
+    }
+}
+
+/// A batch that would hold more than all of `--max-batch-memory`.
+fn too_large_for_batch_memory(bytes: u64, max: u64) -> ServiceError {
+    ServiceError::new(
+        Code::LimitExceeded,
+        format!(
+            "the batch would hold about {bytes} bytes (its frames, results and answer), more than this server lets \
+             all batches in flight hold together, {max} (--max-batch-memory, CURVENET_MAX_BATCH_MEMORY); send fewer \
+             frames per batch{}",
+            if max < 1 << 20 { ", or raise the limit: it is below 1 MiB" } else { "" }
+        ),
+    )
+}
+
+/// Batches admitted at once: half the solve permits, at least one.
+fn batch_slots(max_solves: usize) -> usize {
+    (max_solves.min(Semaphore::MAX_PERMITS) / 2).max(1)
+}
+
+/// A batch's reservation of `--max-batch-memory` ([`AppState::batch_memory`]),
+/// released when dropped; counted in `curvenet_batch_memory_bytes` while held.
+pub(crate) struct BatchMemory {
+    state: AppState,
+    permit: OwnedSemaphorePermit,
+}
+
+impl BatchMemory {
+    fn new(state: &AppState, permit: OwnedSemaphorePermit) -> Self {
+        state.inner.batch_kib_held.fetch_add(permit.num_permits(), Ordering::SeqCst);
+        Self { state: state.clone(), permit }
+    }
+
+    /// Makes the reservation `bytes`: gives back what it holds beyond, or
+    /// waits in line for the rest as [`AppState::batch_memory`] does.
+    pub(crate) async fn resize(&mut self, bytes: u64) -> Result<(), ServiceError> {
+        let (want, held) = (kib(bytes) as usize, self.permit.num_permits());
+        if want < held {
+            if let Some(excess) = self.permit.split(held - want) {
+                self.state.inner.batch_kib_held.fetch_sub(excess.num_permits(), Ordering::SeqCst);
+            }
+        } else if want > held {
+            let max = self.state.inner.config.max_batch_memory;
+            if want > kib(max) as usize {
+                return Err(too_large_for_batch_memory(bytes, max));
+            }
+            let more = self.state.reserve_batch_memory((want - held) as u64 * 1024).await?;
+            self.state.inner.batch_kib_held.fetch_add(more.num_permits(), Ordering::SeqCst);
+            self.permit.merge(more);
+        }
+        Ok(())
+    }
+}
+
+impl Drop for BatchMemory {
+    fn drop(&mut self) {
+        self.state.inner.batch_kib_held.fetch_sub(self.permit.num_permits(), Ordering::SeqCst);
     }
 }
 

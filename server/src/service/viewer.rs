@@ -762,6 +762,7 @@ async fn solve_frame(
         admission,
         entry,
         Numbering::One,
+        None,
         move |_| Ok(vec![frame]),
         move |entry, solved| {
             let solved =
