@@ -119,6 +119,25 @@ def test_a_batch_over_the_servers_body_limit_is_split(start_server, baked: dict)
         assert e.value.code == "payload_too_large" and e.value.status == 413
 
 
+def test_a_batch_over_the_servers_answer_limit_is_split(start_server, baked: dict) -> None:
+    """A batch whose answer is over the server's --max-batch-bytes (422
+    limit_exceeded) is split until the parts pass, and the client's frames
+    per batch lowered to match."""
+    mesh, times, frames = shot_frames("hand_skinned")
+    # Three frames' answers (1,400 vertices x 12 bytes each) fit, twelve do not.
+    server = start_server("--max-batch-bytes", f"{3 * 1400 * 12}B")
+    with Client(server.url) as client:
+        binding = client.bind(mesh.request)
+        out = binding.deform_many(frames)
+        assert all(np.array_equal(p, baked["hand_skinned"][t]) for t, p in zip(times, out))
+        assert client.stats["batch_splits"] >= 1 and client.max_batch_frames <= 3
+        # With gradients (48 bytes a vertex) not even one frame's answer fits a
+        # batch: the halves go one frame at a time, to /frames (no batch limit).
+        with_gradients = binding.deform_many(frames[:2], gradients=True)
+        assert all(np.array_equal(p, baked["hand_skinned"][t]) for t, (p, _) in zip(times, with_gradients))
+        assert client.max_batch_frames == 1
+
+
 def test_adjustments_and_knot_orientations_in_both_forms(server: Server) -> None:
     """A Curvenet Adjustment moves the surface the same in the binary and
     JSON forms; identity adjustments change nothing; the orientations are

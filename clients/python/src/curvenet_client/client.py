@@ -43,6 +43,7 @@ import numpy.typing as npt
 
 from ._version import __version__
 from .errors import (
+    BadInputError,
     PayloadTooLargeError,
     ProtocolError,
     TransportError,
@@ -114,7 +115,9 @@ class Client:
             JSON) or ``"json"`` for frames.
         max_body_bytes: the largest request body a batch is made up to; the
             server's default ``--body-limit`` is 256 MiB. A batch refused with
-            413 is split in halves and this limit lowered to match.
+            413 is split in halves and this limit lowered to match (and one
+            refused with 422 ``limit_exceeded``, too large an answer or too
+            much memory, is split and ``max_batch_frames`` lowered).
         max_batch_frames: the most frames in one ``frames:batch`` request.
 
     The client keeps one keep-alive connection per thread; it may be shared
@@ -125,7 +128,7 @@ class Client:
     ``retry:connection`` per cause, ``stale_connections`` (a kept-alive
     connection found closed: retried at once on a new one, not counted as a
     retry), ``rebinds`` (evicted bindings re-posted) and ``batch_splits``
-    (batches split after a 413).
+    (batches split after a 413 or a 422 ``limit_exceeded``).
     """
 
     def __init__(
@@ -645,8 +648,10 @@ class Binding:
             yield chunk
 
     def _solve_split(self, chunk: list[Frame], gradients: bool) -> list[FrameResult]:
-        """A chunk's request; a batch refused as too large (413) is split in
-        halves, and the client's body budget lowered below what was refused."""
+        """A chunk's request; a batch refused as too large (413: its body;
+        422 ``limit_exceeded``: its answer or its memory, ``--max-batch-bytes``
+        or ``--max-batch-memory``) is split in halves, and the client's body
+        budget or frames per batch lowered below what was refused."""
         try:
             return self.solve(chunk, gradients=gradients)
         except PayloadTooLargeError:
@@ -655,8 +660,13 @@ class Binding:
             self.client._count("batch_splits")
             refused = sum(self.client._body_estimate(f) for f in chunk)
             self.client.max_body_bytes = max(1, min(self.client.max_body_bytes, refused // 2))
-            half = len(chunk) // 2
-            return self._solve_split(chunk[:half], gradients) + self._solve_split(chunk[half:], gradients)
+        except BadInputError as e:
+            if e.code != "limit_exceeded" or len(chunk) == 1:
+                raise
+            self.client._count("batch_splits")
+            self.client.max_batch_frames = max(1, min(self.client.max_batch_frames, len(chunk) // 2))
+        half = len(chunk) // 2
+        return self._solve_split(chunk[:half], gradients) + self._solve_split(chunk[half:], gradients)
 
     def _results(
         self,
