@@ -1251,3 +1251,55 @@ fn single_frames_find_permits_while_batches_fill_the_server() {
     assert!(statuses.iter().all(|s| [200, 503].contains(s)), "{statuses:?}");
     assert!(statuses.contains(&200), "{statuses:?}");
 }
+
+#[test]
+fn batches_that_fit_one_at_a_time_run_one_after_the_other() {
+    let _serial = one_at_a_time();
+    // Frames with a rest pose each: a batch's body is most of it, so its
+    // first share (reserved before parsing: its body and a bound on its
+    // frames, about 79 MB here) is most of its full share (about 105 MB).
+    // Two first shares fit the budget, a first and a full share do not:
+    // both batches holding a first share would wait for each other (the
+    // server idle) until the queue timeout. The batch gate lets one at a
+    // time hold a part, so the second runs once the first is done.
+    let server = Server::start(&["--max-batch-memory", "170MB", "--queue-timeout", "20"]);
+    let addr = server.addr;
+    let req = hand_22k();
+    let id = bind(addr, req);
+    let n = 100;
+    let mut arrays: Vec<Value> = req
+        .curvenets
+        .iter()
+        .enumerate()
+        .map(|(k, c)| json!({"name": "posed", "index": k, "shape": [c.pool.len(), 3]}))
+        .collect();
+    arrays.push(json!({"name": "rest", "shape": [req.projection_points.len(), 3]}));
+    let header = json!({ "frames": vec![json!({ "arrays": arrays }); n] });
+    let frame: Vec<f32> = req
+        .curvenets
+        .iter()
+        .flat_map(|c| c.pool.iter().flatten())
+        .chain(req.projection_points.iter().flatten())
+        .map(|&x| x as f32)
+        .collect();
+    let body = std::sync::Arc::new(binary_frame(&header, &frame.repeat(n)));
+    let t0 = Instant::now();
+    let batches: Vec<_> = (0..2)
+        .map(|_| {
+            let (body, id) = (body.clone(), id.clone());
+            std::thread::spawn(move || {
+                let a = post_binary(addr, &format!("/v1/bindings/{id}/frames:batch"), &body);
+                (a.status, a.text().chars().take(300).collect::<String>(), t0.elapsed())
+            })
+        })
+        .collect();
+    let done: Vec<_> = batches.into_iter().map(|h| h.join().unwrap()).collect();
+    eprintln!("{:?}", done.iter().map(|d| (d.0, d.2)).collect::<Vec<_>>());
+    for (status, text, _) in &done {
+        assert_eq!(*status, 200, "{text}");
+    }
+    // One after the other, not after waiting out the 20 s queue timeout.
+    let last = done.iter().map(|d| d.2).max().unwrap();
+    assert!(last < Duration::from_secs(15), "the batches took {last:?}");
+    assert_eq!(server.metric("curvenet_batch_memory_bytes"), 0.0);
+}

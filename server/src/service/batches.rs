@@ -42,11 +42,18 @@ pub(crate) async fn post_frames_batch(
 ) -> Result<Response, ServiceError> {
     // Once its body is read, each in line up to --queue-timeout: a batch
     // slot (batches hold at most half the solve permits, so single frames
-    // find theirs), memory for its body and its frames before they are
-    // parsed (so those waiting hold only their bodies), then a solve
-    // permit, and what permits are free besides.
+    // find theirs); the batch gate (one batch at a time holds part of its
+    // memory share, so two cannot each hold a part and wait for each
+    // other); its first share of --max-batch-memory, for its body and its
+    // frames before they are parsed (at most the whole budget: the real
+    // size is known once parsed); then a solve permit, and what permits
+    // are free besides, each with a slot. The full share, once parsed,
+    // opens the gate (solve.rs).
     let _slot = state.batch_slot().await?;
-    let memory = state.batch_memory(bytes.len() as u64 + crate::frames::input_bound(form, bytes.len())).await?;
+    let gate = state.batch_gate().await?;
+    let first = bytes.len() as u64 + crate::frames::input_bound(form, bytes.len());
+    let budget = state.config().max_batch_memory / 1024 * 1024;
+    let memory = state.batch_memory(first.min(budget)).await?.with_gate(gate);
     let admission = Admission::one(&state).await?.widen(&state);
     crate::frames::answer(&state, entry, form, bytes, admission, true, Some(memory)).await
 }

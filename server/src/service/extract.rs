@@ -205,7 +205,8 @@ pub(crate) async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, Ser
 /// the solve is done.
 pub(crate) struct Admission {
     _permit: OwnedSemaphorePermit,
-    spare: Option<OwnedSemaphorePermit>,
+    /// A batch's spare batch slots and the permits they go with.
+    spare: Option<(OwnedSemaphorePermit, OwnedSemaphorePermit)>,
 }
 
 impl Admission {
@@ -215,8 +216,9 @@ impl Admission {
         Ok(Self { _permit: state.permit().await?, spare: None })
     }
 
-    /// Also takes whatever permits are free right now, up to one per solve
-    /// thread in all: a batch solves that many frames at once.
+    /// Also takes whatever permits (each with a batch slot) are free right
+    /// now, up to one per solve thread in all: a batch solves that many
+    /// groups at once.
     pub(crate) fn widen(mut self, state: &AppState) -> Self {
         self.spare = state.spare_permits(state.solve_threads().saturating_sub(1) as u32);
         self
@@ -224,7 +226,7 @@ impl Admission {
 
     /// Frames this admission may solve at once.
     pub(crate) fn parallel(&self) -> usize {
-        1 + self.spare.as_ref().map_or(0, |p| p.num_permits())
+        1 + self.spare.as_ref().map_or(0, |(_, p)| p.num_permits())
     }
 }
 

@@ -110,8 +110,12 @@ pub(crate) struct Inner {
     pub batch_memory: Arc<Semaphore>,
     /// KiB of `batch_memory` granted now (the metric).
     pub batch_kib_held: std::sync::atomic::AtomicUsize,
-    /// Batches admitted at once ([`AppState::batch_slot`]).
+    /// Batches admitted at once, and the permits they hold: half of
+    /// `max_solves` ([`AppState::batch_slot`], [`AppState::spare_permits`]).
     pub batch_slots: Arc<Semaphore>,
+    /// One batch at a time between its first share of `batch_memory` and its
+    /// full share ([`AppState::batch_gate`]).
+    pub batch_gate: Arc<Semaphore>,
     pub pool: rayon::ThreadPool,
     pub metrics: Arc<Metrics>,
     pub token_hash: Option<blake3::Hash>,
@@ -150,9 +154,10 @@ impl AppState {
         Ok(Self {
             inner: Arc::new(Inner {
                 permits: Arc::new(Semaphore::new(config.max_solves.min(Semaphore::MAX_PERMITS))),
-                batch_memory: Arc::new(Semaphore::new(kib(config.max_batch_memory) as usize)),
+                batch_memory: Arc::new(Semaphore::new(budget_kib(config.max_batch_memory) as usize)),
                 batch_kib_held: Default::default(),
                 batch_slots: Arc::new(Semaphore::new(batch_slots(config.max_solves))),
+                batch_gate: Arc::new(Semaphore::new(1)),
                 token_hash: config.token.as_deref().map(|t| blake3::hash(t.as_bytes())),
                 config,
                 bake_roots,
@@ -220,7 +225,7 @@ impl AppState {
     async fn reserve_batch_memory(&self, bytes: u64) -> Result<OwnedSemaphorePermit, ServiceError> {
         let max = self.inner.config.max_batch_memory;
         let need = kib(bytes);
-        if need > kib(max) {
+        if need > budget_kib(max) {
             return Err(too_large_for_batch_memory(bytes, max));
         }
         let memory = self.inner.batch_memory.clone();
@@ -281,13 +286,44 @@ impl AppState {
         })
     }
 
-    /// Up to `n` more permits, only those free right now and only while
-    /// half of all of them stay free (a batch's extra parallelism must not
-    /// take the permits single frames wait for).
-    pub(crate) fn spare_permits(&self, n: u32) -> Option<OwnedSemaphorePermit> {
-        let keep = self.inner.config.max_solves.min(Semaphore::MAX_PERMITS) / 2;
-        let n = (n as usize).min(self.inner.permits.available_permits().saturating_sub(keep)) as u32;
-        (1..=n).rev().find_map(|k| self.inner.permits.clone().try_acquire_many_owned(k).ok())
+    /// Up to `n` more permits for a batch, only those free right now, each
+    /// with a batch slot (so batches hold at most half of the permits in
+    /// all, and a batch's extra parallelism never takes the permits single
+    /// frames wait for): (slots, permits).
+    pub(crate) fn spare_permits(&self, n: u32) -> Option<(OwnedSemaphorePermit, OwnedSemaphorePermit)> {
+        (1..=n).rev().find_map(|k| {
+            let slots = self.inner.batch_slots.clone().try_acquire_many_owned(k).ok()?;
+            let permits = self.inner.permits.clone().try_acquire_many_owned(k).ok()?;
+            Some((slots, permits))
+        })
+    }
+
+    /// The batch gate: one batch at a time holds part of its memory share
+    /// while it is parsed and waits for the rest (two batches each holding
+    /// a part could wait for each other), the others wait here holding none.
+    /// Waits in line at most the queue timeout, then `saturated`.
+    pub(crate) async fn batch_gate(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
+        let gate = self.inner.batch_gate.clone();
+        if let Ok(p) = gate.clone().try_acquire_owned() {
+            return Ok(p);
+        }
+        let queue = self.inner.config.queue_timeout;
+        let waited = if queue.is_zero() {
+            None
+        } else {
+            tokio::time::timeout(queue, gate.acquire_owned()).await.ok().and_then(Result::ok)
+        };
+        waited.ok_or_else(|| {
+            self.inner.metrics.saturated.increment(1);
+            ServiceError::new(
+                Code::Saturated,
+                format!(
+                    "batches are read one at a time while they take their memory (--max-batch-memory), and this \
+                     one waited {:.1} s for its turn; retry after the Retry-After delay",
+                    queue.as_secs_f64()
+                ),
+            )
+        })
     }
 
     fn saturated(&self) -> ServiceError {
@@ -360,12 +396,21 @@ fn batch_slots(max_solves: usize) -> usize {
 pub(crate) struct BatchMemory {
     state: AppState,
     permit: OwnedSemaphorePermit,
+    /// The batch gate ([`AppState::batch_gate`]) while this is a first share,
+    /// given back once [`Self::resize`] has made it the full one.
+    gate: Option<OwnedSemaphorePermit>,
 }
 
 impl BatchMemory {
     fn new(state: &AppState, permit: OwnedSemaphorePermit) -> Self {
         state.inner.batch_kib_held.fetch_add(permit.num_permits(), Ordering::SeqCst);
-        Self { state: state.clone(), permit }
+        Self { state: state.clone(), permit, gate: None }
+    }
+
+    /// Holds the batch gate until [`Self::resize`] is done.
+    pub(crate) fn with_gate(mut self, gate: OwnedSemaphorePermit) -> Self {
+        self.gate = Some(gate);
+        self
     }
 
     /// Makes the reservation `bytes`: gives back what it holds beyond, or
@@ -378,13 +423,14 @@ impl BatchMemory {
             }
         } else if want > held {
             let max = self.state.inner.config.max_batch_memory;
-            if want > kib(max) as usize {
+            if want > budget_kib(max) as usize {
                 return Err(too_large_for_batch_memory(bytes, max));
             }
             let more = self.state.reserve_batch_memory((want - held) as u64 * 1024).await?;
             self.state.inner.batch_kib_held.fetch_add(more.num_permits(), Ordering::SeqCst);
             self.permit.merge(more);
         }
+        self.gate = None;
         Ok(())
     }
 }
@@ -399,6 +445,12 @@ impl Drop for BatchMemory {
 /// one acquisition can take), so a budget over 4 TiB counts as 4 TiB.
 fn kib(bytes: u64) -> u32 {
     bytes.div_ceil(1024).min(u32::MAX as u64) as u32
+}
+
+/// The budget in whole KiB, rounded down (so that a share, rounded up,
+/// never admits more than the budget's bytes).
+fn budget_kib(bytes: u64) -> u32 {
+    (bytes / 1024).min(u32::MAX as u64) as u32
 }
 
 /// Runs `f` on tokio's blocking pool; a panic becomes an `internal` error.
