@@ -1083,6 +1083,31 @@ fn an_answer_that_leaves_the_body_unread_closes_the_connection_and_says_so() {
     assert_eq!(status, 200, "{answer}");
 }
 
+/// A server started with `args` and the 22k hand bound on it.
+fn hand_22k_server(args: &[&str]) -> (Server, SocketAddr, &'static BindingRequest, String) {
+    let server = Server::start(args);
+    let id = bind(server.addr, hand_22k());
+    let addr = server.addr;
+    (server, addr, hand_22k(), id)
+}
+
+/// `count` clients posting `body` to binding `id`'s `frames:batch` at once;
+/// each returns its answer and when it came (from this call).
+fn post_batches(
+    addr: SocketAddr,
+    id: &str,
+    body: Vec<u8>,
+    count: usize,
+) -> Vec<std::thread::JoinHandle<(Answer, Duration)>> {
+    let (t0, body) = (Instant::now(), std::sync::Arc::new(body));
+    (0..count)
+        .map(|_| {
+            let (body, path) = (body.clone(), format!("/v1/bindings/{id}/frames:batch"));
+            std::thread::spawn(move || (post_binary(addr, &path, &body), t0.elapsed()))
+        })
+        .collect()
+}
+
 /// Waits (bounded) until `metric` reaches `want`; returns how long it took.
 fn until_at_least(server: &Server, metric: &str, want: f64, limit: Duration) -> Duration {
     let t = Instant::now();
@@ -1096,24 +1121,12 @@ fn until_at_least(server: &Server, metric: &str, want: f64, limit: Duration) -> 
 #[test]
 fn a_frame_posted_during_long_batches_waits_for_one_wave_of_them_not_for_all() {
     let _serial = one_at_a_time();
-    let server = Server::start(&["--max-batch-bytes", "1GiB"]);
-    let addr = server.addr;
-    let req = hand_22k();
-    let id = bind(addr, req);
+    let (server, addr, req, id) = hand_22k_server(&["--max-batch-bytes", "1GiB"]);
     // Two batches of 400 frames of the 22k hand: each about 0.3-1 s of
     // solving on both solve threads, in waves of two groups of 8 frames.
     const N: usize = 400;
-    let body = std::sync::Arc::new(binary_batch(req, N));
     let t0 = Instant::now();
-    let batches: Vec<_> = (0..2)
-        .map(|_| {
-            let (body, id) = (body.clone(), id.clone());
-            std::thread::spawn(move || {
-                let a = post_binary(addr, &format!("/v1/bindings/{id}/frames:batch"), &body);
-                (a.status, a.body.len(), t0.elapsed())
-            })
-        })
-        .collect();
+    let batches = post_batches(addr, &id, binary_batch(req, N), 2);
     // Once their first groups are solved, one frame.
     until_at_least(&server, "curvenet_frames_solved_total", 1.0, Duration::from_secs(60));
     let asked = t0.elapsed();
@@ -1124,14 +1137,14 @@ fn a_frame_posted_during_long_batches_waits_for_one_wave_of_them_not_for_all() {
     assert_eq!(single.status, 200, "{}", single.text());
     let done: Vec<_> = batches.into_iter().map(|h| h.join().unwrap()).collect();
     let vertices = req.projection_points.len();
-    for (status, len, _) in &done {
-        assert_eq!(*status, 200);
-        assert!(*len > N * vertices * 12, "a batch answer of {len} bytes");
+    for (a, _) in &done {
+        assert_eq!(a.status, 200);
+        assert!(a.body.len() > N * vertices * 12, "a batch answer of {} bytes", a.body.len());
     }
-    let first_batch = done.iter().map(|d| d.2).min().unwrap();
+    let first_batch = done.iter().map(|d| d.1).min().unwrap();
     eprintln!(
         "frame asked at {asked:?}, answered at {answered:?} ({solved_then} frames solved then); batches done at {:?}",
-        done.iter().map(|d| d.2).collect::<Vec<_>>()
+        done.iter().map(|d| d.1).collect::<Vec<_>>()
     );
     // Between the frame's asking and its answer the pool ran at most a wave
     // of each batch (16 frames each) besides it; frame by frame it waited
@@ -1148,10 +1161,7 @@ fn a_frame_posted_during_long_batches_waits_for_one_wave_of_them_not_for_all() {
 #[test]
 fn a_batch_stops_solving_when_its_client_leaves() {
     let _serial = one_at_a_time();
-    let server = Server::start(&["--max-batch-bytes", "1GiB"]);
-    let addr = server.addr;
-    let req = hand_22k();
-    let id = bind(addr, req);
+    let (server, addr, req, id) = hand_22k_server(&["--max-batch-bytes", "1GiB"]);
     // 2,000 frames: a few seconds of solving. The client leaves after the first groups.
     const N: usize = 2000;
     let s = send(addr, &format!("/v1/bindings/{id}/frames:batch"), "application/octet-stream", &binary_batch(req, N));
@@ -1174,10 +1184,7 @@ fn a_batch_stops_solving_when_its_client_leaves() {
 #[test]
 fn batches_in_flight_hold_at_most_the_batch_memory_together() {
     let _serial = one_at_a_time();
-    let server = Server::start(&["--max-batch-memory", "64MiB", "--queue-timeout", "0.5"]);
-    let addr = server.addr;
-    let req = hand_22k();
-    let id = bind(addr, req);
+    let (server, addr, req, id) = hand_22k_server(&["--max-batch-memory", "64MiB", "--queue-timeout", "0.5"]);
     let path = format!("/v1/bindings/{id}/frames:batch");
     let vertices = req.projection_points.len();
     // Larger than all of it (200 frames hold 24 bytes a vertex: 105 MB): 422.
@@ -1226,10 +1233,8 @@ fn single_frames_find_permits_while_batches_fill_the_server() {
     // waits in line for a permit. Each batch held one or two of them before:
     // single frames waited 1.1-1.5 s for a permit here, and get 503 after
     // the 0.5 s queue timeout.
-    let server = Server::start(&["--max-solves", "4", "--max-batch-bytes", "1GiB", "--queue-timeout", "0.5"]);
-    let addr = server.addr;
-    let req = hand_22k();
-    let id = bind(addr, req);
+    let (server, addr, req, id) =
+        hand_22k_server(&["--max-solves", "4", "--max-batch-bytes", "1GiB", "--queue-timeout", "0.5"]);
     let body = std::sync::Arc::new(binary_batch(req, 200));
     let batches: Vec<_> = (0..6)
         .map(|_| {
@@ -1262,10 +1267,7 @@ fn batches_that_fit_one_at_a_time_run_one_after_the_other() {
     // both batches holding a first share would wait for each other (the
     // server idle) until the queue timeout. The batch gate lets one at a
     // time hold a part, so the second runs once the first is done.
-    let server = Server::start(&["--max-batch-memory", "170MB", "--queue-timeout", "20"]);
-    let addr = server.addr;
-    let req = hand_22k();
-    let id = bind(addr, req);
+    let (server, addr, req, id) = hand_22k_server(&["--max-batch-memory", "170MB", "--queue-timeout", "20"]);
     let n = 100;
     let mut arrays: Vec<Value> = req
         .curvenets
@@ -1282,24 +1284,14 @@ fn batches_that_fit_one_at_a_time_run_one_after_the_other() {
         .chain(req.projection_points.iter().flatten())
         .map(|&x| x as f32)
         .collect();
-    let body = std::sync::Arc::new(binary_frame(&header, &frame.repeat(n)));
-    let t0 = Instant::now();
-    let batches: Vec<_> = (0..2)
-        .map(|_| {
-            let (body, id) = (body.clone(), id.clone());
-            std::thread::spawn(move || {
-                let a = post_binary(addr, &format!("/v1/bindings/{id}/frames:batch"), &body);
-                (a.status, a.text().chars().take(300).collect::<String>(), t0.elapsed())
-            })
-        })
-        .collect();
+    let batches = post_batches(addr, &id, binary_frame(&header, &frame.repeat(n)), 2);
     let done: Vec<_> = batches.into_iter().map(|h| h.join().unwrap()).collect();
-    eprintln!("{:?}", done.iter().map(|d| (d.0, d.2)).collect::<Vec<_>>());
-    for (status, text, _) in &done {
-        assert_eq!(*status, 200, "{text}");
+    eprintln!("{:?}", done.iter().map(|(a, at)| (a.status, at)).collect::<Vec<_>>());
+    for (a, _) in &done {
+        assert_eq!(a.status, 200, "{}", a.text().chars().take(300).collect::<String>());
     }
     // One after the other, not after waiting out the 20 s queue timeout.
-    let last = done.iter().map(|d| d.2).max().unwrap();
+    let last = done.iter().map(|d| d.1).max().unwrap();
     assert!(last < Duration::from_secs(15), "the batches took {last:?}");
     assert_eq!(server.metric("curvenet_batch_memory_bytes"), 0.0);
 }

@@ -228,28 +228,14 @@ impl AppState {
         if need > budget_kib(max) {
             return Err(too_large_for_batch_memory(bytes, max));
         }
-        let memory = self.inner.batch_memory.clone();
-        if let Ok(p) = memory.clone().try_acquire_many_owned(need) {
-            return Ok(p);
-        }
-        let queue = self.inner.config.queue_timeout;
-        let waited = if queue.is_zero() {
-            None
-        } else {
-            tokio::time::timeout(queue, memory.acquire_many_owned(need)).await.ok().and_then(Result::ok)
-        };
-        waited.ok_or_else(|| {
-            self.inner.metrics.saturated.increment(1);
-            ServiceError::new(
-                Code::Saturated,
-                format!(
-                    "the batches in flight hold this server's memory for batches ({max} bytes, \
-                     --max-batch-memory, CURVENET_MAX_BATCH_MEMORY) and this one, about {bytes} bytes, waited \
-                     {:.1} s for its share; retry after the Retry-After delay, or send smaller batches",
-                    queue.as_secs_f64()
-                ),
+        self.wait_in_line(&self.inner.batch_memory, need, |waited| {
+            format!(
+                "the batches in flight hold this server's memory for batches ({max} bytes, --max-batch-memory, \
+                 CURVENET_MAX_BATCH_MEMORY) and this one, about {bytes} bytes, waited {waited:.1} s for its share; \
+                 retry after the Retry-After delay, or send smaller batches"
             )
         })
+        .await
     }
 
     /// Bytes batches in flight hold now (granted reservations only; one
@@ -262,28 +248,14 @@ impl AppState {
     /// `--max-solves`, so single frames and bindings always find permits):
     /// waits in line at most the queue timeout, then `saturated`.
     pub(crate) async fn batch_slot(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
-        let slots = self.inner.batch_slots.clone();
-        if let Ok(p) = slots.clone().try_acquire_owned() {
-            return Ok(p);
-        }
-        let queue = self.inner.config.queue_timeout;
-        let waited = if queue.is_zero() {
-            None
-        } else {
-            tokio::time::timeout(queue, slots.acquire_owned()).await.ok().and_then(Result::ok)
-        };
-        waited.ok_or_else(|| {
-            self.inner.metrics.saturated.increment(1);
-            ServiceError::new(
-                Code::Saturated,
-                format!(
-                    "this server is solving as many batches as it admits at once ({}, half of --max-solves) and \
-                     this one waited {:.1} s; retry after the Retry-After delay",
-                    batch_slots(self.inner.config.max_solves),
-                    queue.as_secs_f64()
-                ),
+        self.wait_in_line(&self.inner.batch_slots, 1, |waited| {
+            format!(
+                "this server is solving as many batches as it admits at once ({}, half of --max-solves) and this \
+                 one waited {waited:.1} s; retry after the Retry-After delay",
+                batch_slots(self.inner.config.max_solves)
             )
         })
+        .await
     }
 
     /// Up to `n` more permits for a batch, only those free right now, each
@@ -303,26 +275,36 @@ impl AppState {
     /// a part could wait for each other), the others wait here holding none.
     /// Waits in line at most the queue timeout, then `saturated`.
     pub(crate) async fn batch_gate(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
-        let gate = self.inner.batch_gate.clone();
-        if let Ok(p) = gate.clone().try_acquire_owned() {
+        self.wait_in_line(&self.inner.batch_gate, 1, |waited| {
+            format!(
+                "batches are read one at a time while they take their memory (--max-batch-memory), and this one \
+                 waited {waited:.1} s for its turn; retry after the Retry-After delay"
+            )
+        })
+        .await
+    }
+
+    /// `n` permits of `semaphore`, waiting in line (first come, first
+    /// served) at most the queue timeout; else `saturated` with the message
+    /// `message` makes of the seconds waited.
+    async fn wait_in_line(
+        &self,
+        semaphore: &Arc<Semaphore>,
+        n: u32,
+        message: impl FnOnce(f64) -> String,
+    ) -> Result<OwnedSemaphorePermit, ServiceError> {
+        if let Ok(p) = semaphore.clone().try_acquire_many_owned(n) {
             return Ok(p);
         }
         let queue = self.inner.config.queue_timeout;
         let waited = if queue.is_zero() {
             None
         } else {
-            tokio::time::timeout(queue, gate.acquire_owned()).await.ok().and_then(Result::ok)
+            tokio::time::timeout(queue, semaphore.clone().acquire_many_owned(n)).await.ok().and_then(Result::ok)
         };
         waited.ok_or_else(|| {
             self.inner.metrics.saturated.increment(1);
-            ServiceError::new(
-                Code::Saturated,
-                format!(
-                    "batches are read one at a time while they take their memory (--max-batch-memory), and this \
-                     one waited {:.1} s for its turn; retry after the Retry-After delay",
-                    queue.as_secs_f64()
-                ),
-            )
+            ServiceError::new(Code::Saturated, message(queue.as_secs_f64()))
         })
     }
 
