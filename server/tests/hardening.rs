@@ -1295,3 +1295,31 @@ fn batches_that_fit_one_at_a_time_run_one_after_the_other() {
     assert!(last < Duration::from_secs(15), "the batches took {last:?}");
     assert_eq!(server.metric("curvenet_batch_memory_bytes"), 0.0);
 }
+
+#[test]
+fn requests_that_leave_the_line_for_a_permit_are_not_counted_in_it() {
+    let _serial = one_at_a_time();
+    // One permit, and a line of at most 4 waiting for it. A long batch holds
+    // the permit; five single frames wait in line and their clients leave.
+    // Their places must be given back: before, the count of those in line
+    // kept them, so the line stayed full and every later request that found
+    // the permit taken got 503 at once, for the life of the process.
+    let (server, addr, req, id) =
+        hand_22k_server(&["--max-solves", "1", "--queue-timeout", "30", "--max-batch-bytes", "1GiB"]);
+    let batch = post_batches(addr, &id, binary_batch(req, 1500), 1);
+    until_at_least(&server, "curvenet_frames_solved_total", 1.0, Duration::from_secs(60));
+    let pools: Vec<_> = req.curvenets.iter().map(|c| c.pool.clone()).collect();
+    let body = serde_json::to_vec(&json!({ "posed": pools })).unwrap();
+    let path = format!("/v1/bindings/{id}/frames");
+    let leaving: Vec<TcpStream> = (0..5).map(|_| send(addr, &path, "application/json", &body)).collect();
+    std::thread::sleep(Duration::from_millis(300));
+    drop(leaving);
+    std::thread::sleep(Duration::from_millis(300));
+    let solved = server.metric("curvenet_frames_solved_total");
+    assert!(solved < 1500.0, "the batch finished ({solved} frames) before the frame was posted: make it longer");
+    // This frame waits for the permit (the batch still holds it), then is solved.
+    let a = post_json(addr, &path, &json!({ "posed": pools }));
+    assert_eq!(a.status, 200, "{}", a.text());
+    let (b, _) = batch.into_iter().next().unwrap().join().unwrap();
+    assert_eq!(b.status, 200, "{}", b.text().chars().take(300).collect::<String>());
+}

@@ -197,19 +197,17 @@ impl AppState {
     /// most the queue timeout, with at most [`MAX_LINE_PER_SOLVE`] ×
     /// `max_solves` requests in line; beyond either it answers `saturated`.
     pub(crate) async fn permit(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
-        let permits = self.inner.permits.clone();
-        if let Ok(p) = permits.clone().try_acquire_owned() {
+        let inner = &self.inner;
+        if let Ok(p) = inner.permits.clone().try_acquire_owned() {
             return Ok(p);
         }
-        let inner = &self.inner;
-        let line = inner.waiting.fetch_add(1, Ordering::SeqCst);
-        let waited = if line < MAX_LINE_PER_SOLVE * inner.config.max_solves && !inner.config.queue_timeout.is_zero() {
-            tokio::time::timeout(inner.config.queue_timeout, permits.acquire_owned()).await.ok().and_then(Result::ok)
-        } else {
-            None
-        };
-        inner.waiting.fetch_sub(1, Ordering::SeqCst);
-        waited.ok_or_else(|| self.saturated())
+        // Counted in line until this future ends, or is dropped with a
+        // request whose client went away while it waited.
+        let line = InLine::join(&inner.waiting);
+        if line.ahead >= MAX_LINE_PER_SOLVE * inner.config.max_solves {
+            return Err(self.saturated());
+        }
+        self.wait_in_line(&inner.permits, 1, |_| self.saturated_message()).await
     }
 
     /// Reserves `bytes` of `--max-batch-memory` for a batch until the guard
@@ -310,13 +308,14 @@ impl AppState {
 
     fn saturated(&self) -> ServiceError {
         self.inner.metrics.saturated.increment(1);
-        ServiceError::new(
-            Code::Saturated,
-            format!(
-                "the server is solving at its limit ({} solves at once, and a full line waiting up to {:.1} s); retry after the Retry-After delay",
-                self.inner.config.max_solves,
-                self.inner.config.queue_timeout.as_secs_f64()
-            ),
+        ServiceError::new(Code::Saturated, self.saturated_message())
+    }
+
+    fn saturated_message(&self) -> String {
+        format!(
+            "the server is solving at its limit ({} solves at once, and a full line waiting up to {:.1} s); retry after the Retry-After delay",
+            self.inner.config.max_solves,
+            self.inner.config.queue_timeout.as_secs_f64()
         )
     }
 
@@ -352,6 +351,25 @@ impl AppState {
                 Err(_) => Err(ServiceError::internal("the solve pool dropped a job")),
             }
         }
+    }
+}
+
+/// A request in line for a solve permit, counted in `Inner::waiting` while
+/// it lives; `ahead`: how many were in line before it.
+struct InLine<'a> {
+    waiting: &'a std::sync::atomic::AtomicUsize,
+    ahead: usize,
+}
+
+impl<'a> InLine<'a> {
+    fn join(waiting: &'a std::sync::atomic::AtomicUsize) -> Self {
+        Self { ahead: waiting.fetch_add(1, Ordering::SeqCst), waiting }
+    }
+}
+
+impl Drop for InLine<'_> {
+    fn drop(&mut self) {
+        self.waiting.fetch_sub(1, Ordering::SeqCst);
     }
 }
 
