@@ -50,10 +50,8 @@ pub(crate) async fn post_frames_batch(
     // are free besides, each with a slot. The full share, once parsed,
     // opens the gate (solve.rs).
     let _slot = state.batch_slot().await?;
-    let gate = state.batch_gate().await?;
     let first = bytes.len() as u64 + crate::frames::input_bound(form, bytes.len());
-    let budget = state.config().max_batch_memory / 1024 * 1024;
-    let memory = state.batch_memory(first.min(budget)).await?.with_gate(gate);
+    let memory = state.batch_first_share(first).await?;
     let admission = Admission::one(&state).await?.widen(&state);
     crate::frames::answer(&state, entry, form, bytes, admission, true, Some(memory)).await
 }

@@ -236,6 +236,19 @@ impl AppState {
         .await
     }
 
+    /// A batch's first share, before its frames are parsed: `bytes` (its
+    /// body and a bound on its parsed frames), at most the whole budget (the
+    /// real size is known once parsed), taken through the batch gate
+    /// ([`Self::batch_gate`]), which the share holds until
+    /// [`BatchMemory::resize`] makes it the full one.
+    pub(crate) async fn batch_first_share(&self, bytes: u64) -> Result<BatchMemory, ServiceError> {
+        let gate = self.batch_gate().await?;
+        let budget = budget_kib(self.inner.config.max_batch_memory) as u64 * 1024;
+        let mut memory = self.batch_memory(bytes.min(budget)).await?;
+        memory.gate = Some(gate);
+        Ok(memory)
+    }
+
     /// Bytes batches in flight hold now (granted reservations only; one
     /// waiting in line is not counted until it has all of its share).
     pub fn batch_memory_held(&self) -> u64 {
@@ -272,7 +285,7 @@ impl AppState {
     /// while it is parsed and waits for the rest (two batches each holding
     /// a part could wait for each other), the others wait here holding none.
     /// Waits in line at most the queue timeout, then `saturated`.
-    pub(crate) async fn batch_gate(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
+    async fn batch_gate(&self) -> Result<OwnedSemaphorePermit, ServiceError> {
         self.wait_in_line(&self.inner.batch_gate, 1, |waited| {
             format!(
                 "batches are read one at a time while they take their memory (--max-batch-memory), and this one \
@@ -405,12 +418,6 @@ impl BatchMemory {
     fn new(state: &AppState, permit: OwnedSemaphorePermit) -> Self {
         state.inner.batch_kib_held.fetch_add(permit.num_permits(), Ordering::SeqCst);
         Self { state: state.clone(), permit, gate: None }
-    }
-
-    /// Holds the batch gate until [`Self::resize`] is done.
-    pub(crate) fn with_gate(mut self, gate: OwnedSemaphorePermit) -> Self {
-        self.gate = Some(gate);
-        self
     }
 
     /// Makes the reservation `bytes`: gives back what it holds beyond, or
