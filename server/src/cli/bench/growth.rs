@@ -25,7 +25,7 @@ use std::path::Path;
 use curvenet_schema::{CurvenetData, MeshData};
 use serde::Serialize;
 
-use super::{CliError, CliResult, Frame, Stopwatch, build, load, median, ms_since, pose};
+use super::{CliError, CliResult, Frame, Stopwatch, TriSolve, build, load, median, ms_since, pose};
 
 /// Binding target (ms) and frame target (× the base frame).
 const BINDING_TARGET_MS: f64 = 1500.0;
@@ -53,6 +53,11 @@ pub(super) struct GrowthBench {
     pub binding_other_ms: f64,
     pub frames: usize,
     pub solve_ms: f64,
+    /// The frame's two triangular solves (9 and 3 columns) on random
+    /// right-hand sides, timed right after each frame (medians), as the
+    /// per-mesh rows' `tri9_ms` and `tri3_ms`.
+    pub tri9_ms: f64,
+    pub tri3_ms: f64,
     /// The base mesh's frame median in this run, if it was benched.
     pub base_solve_ms: Option<f64>,
     pub solve_over_base: Option<f64>,
@@ -175,7 +180,7 @@ pub(super) fn bench_growth(
         bound = Some(deformer);
     }
     let deformer = bound.expect("at least one binding");
-    let frame_times = solve_frames(&deformer, &nets, frames, &context)?;
+    let (frame_times, tri9_ms, tri3_ms) = solve_frames(&deformer, &nets, frames, &context)?;
     let peak = peak_rss_bytes();
     let b = deformer.binding();
     // After the peak is read: the comparison's two extra factors are not the binding's memory.
@@ -203,6 +208,8 @@ pub(super) fn bench_growth(
         binding_other_ms: median(other),
         frames,
         solve_ms,
+        tri9_ms,
+        tri3_ms,
         base_solve_ms,
         solve_over_base,
         binding_bytes: bytes,
@@ -217,16 +224,21 @@ pub(super) fn bench_growth(
     })
 }
 
-/// Frame wall times (ms) of the finger curl, after one untimed frame.
+/// Frame wall times (ms) of the finger curl, after one untimed frame, and
+/// the medians of the two triangular solves timed right after each frame.
 fn solve_frames(
     deformer: &curvenet_core::Deformer,
     nets: &[CurvenetData],
     frames: usize,
     context: &str,
-) -> CliResult<Vec<f64>> {
+) -> CliResult<(Vec<f64>, f64, f64)> {
     let frames = frames.max(1);
     let mut out = vec![[0.0; 3]; deformer.n_vertices()];
     let mut times = Vec::with_capacity(frames);
+    let binding = deformer.binding();
+    let mut tri9 = TriSolve::<9>::new(binding.n_unknowns(), 9);
+    let mut tri3 = TriSolve::<3>::new(binding.n_unknowns(), 3);
+    let (mut tri9_t, mut tri3_t) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
     for i in 0..=frames {
         let pools = pose(nets, i.saturating_sub(1), frames);
         let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
@@ -236,9 +248,11 @@ fn solve_frames(
             .map_err(|source| CliError::Core { context: format!("{context}, growth frame {i}"), source })?;
         if i > 0 {
             times.push(clock.stop().wall_ms);
+            tri9_t.push(tri9.time(binding).wall_ms);
+            tri3_t.push(tri3.time(binding).wall_ms);
         }
     }
-    Ok(times)
+    Ok((times, median(tri9_t), median(tri3_t)))
 }
 
 /// The growth row as text.
@@ -255,7 +269,7 @@ pub(super) fn text(g: &GrowthBench) -> String {
     let scope = if g.peak_rss_reset { "this part" } else { "whole process" };
     let _ = writeln!(
         s,
-        "  unknowns {}, L nnz {} ({}), binding {:.0} ms (surface {:.0}, cutting {:.0}, assembly {:.0}, factor {:.0}, other {:.0} ms; analysis {:.0} ms apart), frame {:.1} ms, binding {:.0} bytes/vertex, peak RSS {peak} ({scope})",
+        "  unknowns {}, L nnz {} ({}), binding {:.0} ms (surface {:.0}, cutting {:.0}, assembly {:.0}, factor {:.0}, other {:.0} ms; analysis {:.0} ms apart), frame {:.1} ms (triangular solves {:.1} + {:.1} ms), binding {:.0} bytes/vertex, peak RSS {peak} ({scope})",
         g.unknowns,
         g.factor_nonzeros,
         g.ordering,
@@ -267,6 +281,8 @@ pub(super) fn text(g: &GrowthBench) -> String {
         g.binding_other_ms,
         g.analysis_ms,
         g.solve_ms,
+        g.tri9_ms,
+        g.tri3_ms,
         g.binding_bytes_per_vertex
     );
     let met = |b: bool| if b { "met" } else { "NOT met" };
