@@ -11,7 +11,8 @@
 use glam::{DMat3, DVec3};
 
 use crate::adjust::{Adjustment, UNCLAIMED};
-use crate::binding::{Binding, Corner, triangle_frame};
+use crate::binding::rhs::RestFaces;
+use crate::binding::{Binding, triangle_frame};
 use crate::curvenet::lanes::{LaneScratch, SlotRows, slot_rows};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
@@ -86,7 +87,7 @@ impl Binding {
             rest_samples: self.layouts.iter().map(|l| vec![[0.0; 3]; l.n_samples()]).collect(),
             rest_frames: self.layouts.iter().map(|l| vec![[zero_frame; 2]; l.n_segments()]).collect(),
             rest_cut: vec![DVec3::ZERO; self.cut.n_vertices()],
-            rest_corner_r: vec![DVec3::ZERO; self.cut.n_halfedges()],
+            rest_corner_r: vec![DVec3::ZERO; self.rest_faces.n_corners()],
             rest_mode: false,
             rest_sample_offset: vec![DVec3::ZERO; self.sample_offset.len()],
             rest_crossing_offset: vec![DVec3::ZERO; self.crossings.len()],
@@ -283,18 +284,19 @@ impl Binding {
             self.gradient_rhs.add_to(&ws.grad9, &mut ws.rhs3);
             return;
         }
-        // A frame with its own rest pose: corner_r of that pose, face by face.
+        // A frame with its own rest pose: corner_r of that pose, face by
+        // face, in the faces' visiting order (`RestFaces`).
+        let rf = &self.rest_faces;
         let corner_r = &ws.rest_corner_r[..];
-        for f in 0..self.cut.n_faces() as u32 {
-            let hs = self.cut.face_halfedges(f);
+        for i in 0..rf.face.len() {
+            let cs = rf.start[i] as usize..rf.start[i + 1] as usize;
             let mut sum = [0.0; 9];
             let mut n = 0.0;
-            for h in hs.clone() {
-                let v = match self.corner[h as usize] {
-                    Corner::Unknown(u) => &ws.grad9[u.index()],
-                    Corner::Constraint(r) => &ws.grad9[ws.n_unknowns + r.index()],
-                    Corner::Fixed => continue,
-                };
+            for &s in &rf.src[cs.clone()] {
+                if s == RestFaces::NONE {
+                    continue;
+                }
+                let v = &ws.grad9[s as usize];
                 for i in 0..9 {
                     sum[i] += v[i];
                 }
@@ -304,14 +306,17 @@ impl Binding {
                 continue;
             }
             let ff = unflat(&sum) * (1.0 / n);
-            for h in hs {
-                if let Corner::Unknown(u) = self.corner[h as usize] {
-                    let y = ff * corner_r[h as usize];
-                    let row = &mut ws.rhs3[u.index()];
-                    row[0] += y.x;
-                    row[1] += y.y;
-                    row[2] += y.z;
+            for c in cs {
+                // Unknowns add to their own rows; constraint rows and fixed corners to none.
+                let d = rf.src[c] as usize;
+                if d >= ws.n_unknowns {
+                    continue;
                 }
+                let y = ff * corner_r[c];
+                let row = &mut ws.rhs3[d];
+                row[0] += y.x;
+                row[1] += y.y;
+                row[2] += y.z;
             }
         }
     }
@@ -424,16 +429,24 @@ impl Binding {
             };
             ws.rest_crossing_offset[c] = ws.rest_cut[row.vertex as usize] - p(lo).lerp(p(hi), row.t);
         }
-        for f in 0..self.cut.n_faces() as u32 {
-            let hs = self.cut.face_halfedges(f);
-            let n = hs.len();
-            let lf = self.face_laplacian(crate::ids::CutFace(f));
+        // r_h = (L_f X̌_f)_j of every visited corner, in the order the
+        // Poisson right-hand side reads them (`RestFaces`).
+        let rf = &self.rest_faces;
+        // The binding stores the visited faces' Laplacians first, in this
+        // order (`RestFaces::laplacians_in_visiting_order`).
+        let mut lap = 0;
+        for i in 0..rf.face.len() {
+            let at = rf.start[i] as usize;
+            let n = rf.start[i + 1] as usize - at;
+            let lf = &self.face_laplacian[lap..lap + n * n];
+            lap += n * n;
+            let tails = &rf.tail[at..at + n];
             for j in 0..n {
                 let mut r = DVec3::ZERO;
-                for k in 0..n {
-                    r += lf[j * n + k] * ws.rest_cut[self.cut.tail(hs.start + k as u32) as usize];
+                for (k, &t) in tails.iter().enumerate() {
+                    r += lf[j * n + k] * ws.rest_cut[t as usize];
                 }
-                ws.rest_corner_r[hs.start as usize + j] = r;
+                ws.rest_corner_r[at + j] = r;
             }
         }
         Ok(())

@@ -61,8 +61,7 @@ impl Binding {
         let mut entries = Vec::new();
         for f in 0..self.cut.n_faces() as u32 {
             let hs = self.cut.face_halfedges(f);
-            let lf = &self.face_laplacian
-                [self.face_laplacian_start[f as usize] as usize..self.face_laplacian_start[f as usize + 1] as usize];
+            let lf = self.face_laplacian(crate::ids::CutFace(f));
             split_face(lf, &self.corner[hs.start as usize..hs.end as usize], &mut entries, None);
         }
         entries.sort_unstable_by_key(|&(r, c, _)| (c, r));

@@ -36,7 +36,7 @@ mod export;
 mod join;
 pub mod locate;
 pub mod path;
-mod rhs;
+pub(crate) mod rhs;
 pub mod strip;
 pub mod surface;
 pub mod trace;
@@ -321,6 +321,9 @@ pub struct Binding {
     /// from every corner's (L_f X̌_f)_j, which the binding does not keep: a
     /// frame with its own rest pose computes its own).
     pub(crate) gradient_rhs: rhs::GradientRhs,
+    /// The faces and corners a frame with its own rest pose visits for its
+    /// Poisson right-hand side.
+    pub(crate) rest_faces: rhs::RestFaces,
     /// Mesh vertices on the curvenet and the constraint rows of their corners
     /// (their output is the mean), CSR by `curve_vertex_start`.
     pub(crate) curve_vertices: Vec<MeshVertex>,
@@ -432,6 +435,9 @@ impl Binding {
         let maps = rhs::rhs_maps(&cut, &joined, curvenets, &classified, face_laplacian, cancel)?;
         let gradient_rhs =
             rhs::GradientRhs::new(&cut, &classified.corner, &maps.corner_r, classified.unknown_vertex.len(), cancel)?;
+        let rest_faces = rhs::RestFaces::new(&cut, &classified.corner, classified.unknown_vertex.len());
+        let (face_laplacian, face_laplacian_start) =
+            rest_faces.laplacians_in_visiting_order(&cut, &assembled.face_laplacian, &assembled.face_laplacian_start);
         let knots = rhs::bind_knots(&surface, curvenets)?;
         let orientation_plans = crate::adjust::orientation_plans(&surface, curvenets, &knots)?;
         Ok(Self {
@@ -443,6 +449,7 @@ impl Binding {
             sample_offset: maps.sample_offset,
             crossing_offset: maps.crossing_offset,
             gradient_rhs,
+            rest_faces,
             curve_vertices: maps.curve_vertices,
             curve_vertex_start: maps.curve_vertex_start,
             curve_vertex_rows: maps.curve_vertex_rows,
@@ -454,8 +461,8 @@ impl Binding {
             corner: classified.corner,
             unknown_vertex: classified.unknown_vertex,
             vertex_unknown: classified.vertex_unknown,
-            face_laplacian: assembled.face_laplacian,
-            face_laplacian_start: assembled.face_laplacian_start,
+            face_laplacian,
+            face_laplacian_start,
             b: assembled.b,
             factor,
             warnings,
@@ -489,8 +496,9 @@ impl Binding {
     }
     /// The Laplacian of cut-face `f` (row-major, `n_f × n_f`).
     pub fn face_laplacian(&self, f: CutFace) -> &[f64] {
-        &self.face_laplacian
-            [self.face_laplacian_start[f.index()] as usize..self.face_laplacian_start[f.index() + 1] as usize]
+        let n = self.cut.face_halfedges(f.0).len();
+        let at = self.face_laplacian_start[f.index()] as usize;
+        &self.face_laplacian[at..at + n * n]
     }
     /// The value source of corner (cut halfedge) `h`: `Some(Ok(u))` unknown
     /// `u`, `Some(Err(r))` constraint row `r`, `None` fixed.
@@ -638,6 +646,7 @@ impl Binding {
             + bytes(&self.sample_offset)
             + bytes(&self.crossing_offset)
             + self.gradient_rhs.heap_bytes()
+            + self.rest_faces.heap_bytes()
             + bytes(&self.curve_vertices)
             + bytes(&self.curve_vertex_start)
             + bytes(&self.curve_vertex_rows)

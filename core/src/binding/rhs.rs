@@ -383,6 +383,120 @@ impl GradientRhs {
     }
 }
 
+/// The cut faces a frame with its own rest pose visits to make its
+/// Poisson right-hand side (paper Eq. 5 with per-frame `r_h`,
+/// [`Binding::deform_poisson_rhs`](super::Binding)), with their corners'
+/// value sources resolved.
+///
+/// Faces are visited in the order of their smallest unknown, so that the
+/// rows of `f` they read and the rows of the right-hand side they add to
+/// come nearly in the order the unknowns are numbered (the factor's):
+/// visited in cut-face order, both were scattered over the whole array,
+/// and this loop took 35% of a hand_22k frame in a group of eight that
+/// each carried its own rest pose (`perf`, 2026-12-03). Faces without an
+/// unknown corner add nothing and are left out. Every frame visits them in
+/// this one order, so a frame's bits do not depend on how it is solved
+/// (alone or in a group of any size, on any thread).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct RestFaces {
+    /// The visited faces.
+    pub face: Vec<u32>,
+    /// Corners of visited face `i`: `start[i]..start[i + 1]` into `src` and
+    /// `tail`, in the face's halfedge order (also the positions of their
+    /// `r_h` in the workspace's per-frame array).
+    pub start: Vec<u32>,
+    /// Per corner, the `grad9` row it reads, or [`RestFaces::NONE`] for a
+    /// fixed corner: below the unknowns' count an unknown (the row the
+    /// corner also adds to), from there `n_unknowns + r` for constraint
+    /// row `r` (which adds to none).
+    pub src: Vec<u32>,
+    /// Per corner, its cut-vertex (the halfedge's tail), whose rest
+    /// position the corner's `r_h` reads.
+    pub tail: Vec<u32>,
+}
+
+impl RestFaces {
+    pub const NONE: u32 = u32::MAX;
+
+    pub(crate) fn new(cut: &CutMesh, corner: &[Corner], n_unknowns: usize) -> Self {
+        let mut faces: Vec<u32> = Vec::new();
+        let mut keys: Vec<u32> = Vec::new();
+        for f in 0..cut.n_faces() as u32 {
+            let first = cut
+                .face_halfedges(f)
+                .filter_map(|h| match corner[h as usize] {
+                    Corner::Unknown(u) => Some(u.0),
+                    _ => None,
+                })
+                .min();
+            if let Some(u) = first {
+                faces.push(f);
+                keys.push(u);
+            }
+        }
+        // Stable by key: faces with the same smallest unknown keep cut-face order.
+        let (_, order) = crate::sparse::group_by_key(n_unknowns, &keys);
+        let face: Vec<u32> = order.iter().map(|&i| faces[i as usize]).collect();
+        let mut start = Vec::with_capacity(face.len() + 1);
+        start.push(0u32);
+        let (mut src, mut tail) = (Vec::new(), Vec::new());
+        for &f in &face {
+            for h in cut.face_halfedges(f) {
+                tail.push(cut.tail(h));
+                src.push(match corner[h as usize] {
+                    Corner::Unknown(u) => u.0,
+                    Corner::Constraint(r) => n_unknowns as u32 + r.0,
+                    Corner::Fixed => Self::NONE,
+                });
+            }
+            start.push(src.len() as u32);
+        }
+        Self { face, start, src, tail }
+    }
+
+    /// The per-face Laplacians `(values, start)` of [`super::assemble`]
+    /// (row-major `n_f × n_f` squares, concatenated in cut-face order)
+    /// stored again with the visited faces first, in visiting order, then
+    /// the others in cut-face order: `start[f]` is where face `f`'s square
+    /// begins (no end: its size is the face's), so that a frame with its
+    /// own rest pose reads them front to back.
+    pub(crate) fn laplacians_in_visiting_order(
+        &self,
+        cut: &CutMesh,
+        values: &[f64],
+        start: &[u32],
+    ) -> (Vec<f64>, Vec<u32>) {
+        let n_faces = cut.n_faces();
+        let mut visited = vec![false; n_faces];
+        let mut out = Vec::with_capacity(values.len());
+        let mut out_start = vec![0u32; n_faces];
+        let mut push = |f: usize, out: &mut Vec<f64>| {
+            out_start[f] = out.len() as u32;
+            out.extend_from_slice(&values[start[f] as usize..start[f + 1] as usize]);
+        };
+        for &f in &self.face {
+            visited[f as usize] = true;
+            push(f as usize, &mut out);
+        }
+        for f in 0..n_faces {
+            if !visited[f] {
+                push(f, &mut out);
+            }
+        }
+        (out, out_start)
+    }
+
+    /// Number of corners of the visited faces.
+    pub(crate) fn n_corners(&self) -> usize {
+        self.src.len()
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        use crate::heap::bytes;
+        bytes(&self.face) + bytes(&self.start) + bytes(&self.src) + bytes(&self.tail)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::GradientRhs;
