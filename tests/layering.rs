@@ -149,3 +149,54 @@ fn over_a_skinned_rest_pose_an_articulated_wrist_ring_changes_only_its_sides() {
     assert!(largest[2] < largest[0], "no falloff towards the palm: {table:?}");
     assert!(largest[4] <= 1e-9 * diag, "the change leaks past the palm ring: {:e}", largest[4]);
 }
+
+/// A rig's global scale: the rest pose and the posed curvenet both scaled
+/// by `s` give the frame scaled by `s`. Knot
+/// tracking keeps each knot's offset from its triangle in units of the
+/// triangle's size, so the tracked curvenet scales with the rest pose (a
+/// hostile review found offsets kept in absolute units: 1e-3 of the
+/// diagonal wrong at s = 1.1, and a rest pose scaled by 1e-20 came back at
+/// the projection pose's size).
+#[test]
+fn a_scaled_rest_pose_and_curvenet_give_the_scaled_frame() {
+    let b = bind_fixture("shots/hand_wave/shot.usda");
+    let pool = b.stage.posed_pool(&b.nets[0], Some(13.0)).unwrap().unwrap();
+    let base = solve(&b, &[Some(&pool)], Some(&b.mesh.projection_points));
+    let pts = &b.mesh.projection_points;
+    // About the origin: scaled about a point away from it, small poses
+    // would carry that point's rounding (5e-17 at 0.4 is 5e-11 of a hand
+    // scaled by 1e-6) into every coordinate.
+    let scale = |p: &[f64; 3], s: f64| -> [f64; 3] { p.map(|x| s * x) };
+    for s in [1.1, 0.5, 2.5, 1e4, 1e-6, 1e-20] {
+        let rest: Vec<[f64; 3]> = pts.iter().map(|p| scale(p, s)).collect();
+        let posed: Vec<[f64; 3]> = pool.iter().map(|p| scale(p, s)).collect();
+        let mut out = vec![[0.0; 3]; b.deformer.n_vertices()];
+        let frame = Frame { posed: &[Some(&posed)], rest: Some(&rest), ..Default::default() };
+        match b.deformer.frame(&frame, &mut out, None) {
+            Ok(()) => {
+                let want: Vec<[f64; 3]> = base.iter().map(|p| scale(p, s)).collect();
+                let err = max_distance(&out, &want) / (s * b.diagonal());
+                eprintln!(
+                    "rest pose and curvenet scaled by {s:e}: {err:.2e} x the scaled diagonal from the scaled frame"
+                );
+                assert!(err <= 1e-9, "scale {s:e}: {err:e} of the scaled diagonal");
+            }
+            // Far below the bound curvenet's size a segment is refused as
+            // collapsed (its threshold is relative to the binding): an error,
+            // never a mesh of the wrong size.
+            Err(e) => {
+                eprintln!("rest pose and curvenet scaled by {s:e}: {e}");
+                assert!(s < 1e-9, "scale {s:e}: {e}");
+                // The curvenet tracked onto the rest pose is the one refused.
+                let tracked = match &e {
+                    curvenet_core::Error::Curvenet { source, .. } => match source.as_ref() {
+                        curvenet_core::Error::RestPose { source } => Some(source.as_ref()),
+                        _ => None,
+                    },
+                    _ => None,
+                };
+                assert!(matches!(tracked, Some(curvenet_core::Error::SegmentCollapsed { .. })), "scale {s:e}: {e:?}");
+            }
+        }
+    }
+}

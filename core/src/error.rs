@@ -31,6 +31,12 @@ pub enum Error {
     /// intersections), naming the curvenet by its index in the binding.
     #[error("curvenet {curvenet}: {source}")]
     Curvenet { curvenet: u32, source: Box<Error> },
+    /// An error of a curvenet tracked onto a frame's own rest pose
+    /// (Elemental's knot tracking): what degenerated is the rest pose the
+    /// frame brought, not the curvenet as drawn or posed. Wrapped in
+    /// [`Error::Curvenet`] naming the curvenet.
+    #[error("tracked onto the frame's rest pose: {source}")]
+    RestPose { source: Box<Error> },
     /// Two arrays that must have the same length do not.
     #[error("{what}: expected {expected} entries, got {got}")]
     CountMismatch { what: &'static str, expected: usize, got: usize },

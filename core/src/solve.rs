@@ -11,8 +11,8 @@
 use glam::{DMat3, DVec3};
 
 use crate::adjust::{Adjustment, UNCLAIMED};
+use crate::binding::Binding;
 use crate::binding::rhs::RestFaces;
-use crate::binding::{Binding, triangle_frame};
 use crate::curvenet::lanes::{LaneScratch, SlotRows, slot_rows};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
@@ -388,11 +388,7 @@ impl Binding {
         for (o, kb) in out.iter_mut().zip(knots) {
             let [a, b, c] = self.surface.triangle_points(kb.tri, rest);
             let base = a * kb.bary[0] + b * kb.bary[1] + c * kb.bary[2];
-            let offset = match triangle_frame(a, b, c) {
-                Some(fr) => fr[0] * kb.local[0] + fr[1] * kb.local[1] + fr[2] * kb.local[2],
-                None => DVec3::from_array(kb.local),
-            };
-            *o = (base + offset).to_array();
+            *o = (base + kb.offset_on(a, b, c)).to_array();
         }
         Ok(())
     }
@@ -408,9 +404,12 @@ impl Binding {
             *x = self.surface.position_in(self.cut.vertex(v as u32).loc, rest);
         }
         for (k, layout) in self.layouts.iter().enumerate() {
+            // A tracked curvenet that degenerates names the rest pose.
+            let tracked =
+                |e| Error::Curvenet { curvenet: k as u32, source: Box::new(Error::RestPose { source: Box::new(e) }) };
             self.tracked_pool_into(k, rest, &mut ws.tracked[k])?;
-            layout.sampling().samples_into(&ws.tracked[k], &mut ws.rest_samples[k])?;
-            scaled_frames_into(layout, &ws.rest_samples[k], &mut ws.rest_frames[k])?;
+            layout.sampling().samples_into(&ws.tracked[k], &mut ws.rest_samples[k]).map_err(tracked)?;
+            scaled_frames_into(layout, &ws.rest_samples[k], &mut ws.rest_frames[k]).map_err(tracked)?;
             let base = self.nets[k].sample as usize;
             for (i, q) in ws.rest_samples[k].iter().enumerate() {
                 let g = base + i;

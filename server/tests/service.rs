@@ -611,6 +611,16 @@ async fn every_bad_input_gets_its_status_and_code_and_a_good_frame_still_works()
         assert_eq!(v["details"]["curvenet"], 0, "{form}: {v}");
         assert_eq!(v["details"]["what"], "posed", "{form}: {v}");
     }
+    // A rest pose collapsed to a point collapses the curvenet tracked onto
+    // it: a degenerate pose that names the rest pose and the curvenet.
+    let collapsed = vec![[0.25, 0.5, -0.125]; nv];
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"rest": collapsed}))).await;
+    let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{v}");
+    assert_eq!(v["code"], "degenerate_pose", "{v}");
+    assert!(v["message"].as_str().unwrap().starts_with("curvenets[0]: tracked onto the frame's rest pose: "), "{v}");
+    assert_eq!(v["details"]["curvenet"], 0, "{v}");
+    assert_eq!(v["details"]["what"], "rest", "{v}");
     // A bad frame in a batch is named by its index.
     let batch = json!({"frames": [{}, {"posed": [&pool[2..]]}]});
     let (status, _, body) = send(&app, post_json(&format!("/v1/bindings/{id}/frames:batch"), &batch)).await;

@@ -226,23 +226,53 @@ pub(crate) struct CrossingRow {
 
 /// A curvenet control point bound to the surface: a triangle (index into
 /// the surface's triangles), barycentric coordinates of its closest point,
-/// and its offset from that point in the triangle's orthonormal frame.
+/// and its offset from that point in the triangle's orthonormal frame, in
+/// units of the triangle's size ([`triangle_frame`]), so that a tracked
+/// knot keeps its place relative to the surface when the rest pose scales
+/// it (a rig's global scale). Elemental's knot tracking says the offset is
+/// kept in the triangle's local frame but not in which units; absolute
+/// units made a curvenet tracked onto a rest pose scaled by 1.1 wrong by
+/// 1e-3 of the diagonal, and one scaled by 1e-20 come back at full size.
+/// A triangle degenerate at binding (no frame) keeps the offset as it is,
+/// in the mesh's units (`size` 0).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct KnotBinding {
     pub tri: u32,
     pub bary: [f64; 3],
     pub local: [f64; 3],
+    /// The triangle's size at binding, or 0 when it had no frame.
+    pub size: f64,
+}
+
+impl KnotBinding {
+    /// The knot's offset from its closest point on a triangle `a b c` of
+    /// the rest pose: `local` in that triangle's frame and size. A rest
+    /// triangle degenerate (no frame) keeps the binding's offset as it was
+    /// in the projection pose's orientation and size, which is all there is.
+    pub(crate) fn offset_on(&self, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+        let l = self.local;
+        match triangle_frame(a, b, c) {
+            Some(([e1, e2, n], size)) => {
+                let unit = if self.size > 0.0 { size } else { 1.0 };
+                (e1 * l[0] + e2 * l[1] + n * l[2]) * unit
+            }
+            None => DVec3::from_array(l) * if self.size > 0.0 { self.size } else { 1.0 },
+        }
+    }
 }
 
 /// An orthonormal frame of a triangle: (edge direction, in-plane normal to
-/// it, triangle normal), or `None` for a degenerate triangle.
-pub(crate) fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<[DVec3; 3]> {
+/// it, triangle normal), and its size `√|(b − a) × (c − a)|` (the side of
+/// a square of twice its area), or `None` for a degenerate triangle.
+pub(crate) fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<([DVec3; 3], f64)> {
     let e1 = (b - a).normalize_or_zero();
-    let n = (b - a).cross(c - a).normalize_or_zero();
-    if e1 == DVec3::ZERO || n == DVec3::ZERO {
+    let cross = (b - a).cross(c - a);
+    let n = cross.normalize_or_zero();
+    let size = cross.length().sqrt();
+    if e1 == DVec3::ZERO || n == DVec3::ZERO || !(size > 0.0 && size.is_finite()) {
         return None;
     }
-    Some([e1, n.cross(e1), n])
+    Some(([e1, n.cross(e1), n], size))
 }
 
 /// Per-curvenet offsets into the concatenated samples, segments and slots.

@@ -120,11 +120,13 @@ pub(crate) fn bind_knots(surface: &Surface, curvenets: &[&CurvenetLayout]) -> Re
             let tri = hit.triangle;
             let [a, b, c] = surface.triangle_points(tri, &surface.points);
             let offset = DVec3::from_array(*p) - DVec3::from_array(hit.point);
-            let local = match triangle_frame(a, b, c) {
-                Some(fr) => [offset.dot(fr[0]), offset.dot(fr[1]), offset.dot(fr[2])],
-                None => offset.to_array(),
+            let (local, size) = match triangle_frame(a, b, c) {
+                Some((fr, size)) => {
+                    ([offset.dot(fr[0]) / size, offset.dot(fr[1]) / size, offset.dot(fr[2]) / size], size)
+                }
+                None => (offset.to_array(), 0.0),
             };
-            bound.push(KnotBinding { tri, bary: hit.barycentric, local });
+            bound.push(KnotBinding { tri, bary: hit.barycentric, local, size });
         }
         knots.push(bound);
     }

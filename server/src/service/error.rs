@@ -369,6 +369,13 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
             d.curvenet = Some(*curvenet);
             code
         }
+        // The curvenet tracked onto the frame's rest pose degenerated: the
+        // source's code and elements, and `what: "rest"` (the frame field).
+        E::RestPose { source } => {
+            let code = classify(source, phase, d);
+            d.what = what("rest");
+            code
+        }
         E::DegenerateFaceCount { face, .. } | E::FoldedFace { face } => {
             d.face = Some(*face);
             Code::InvalidMesh
@@ -544,6 +551,7 @@ fn is_mesh_error(e: &curvenet_core::Error) -> bool {
         | E::NonFinite { .. }
         | E::NonFiniteScalar { .. }
         | E::Curvenet { .. }
+        | E::RestPose { .. }
         | E::CountMismatch { .. }
         | E::SampleFarFromSurface { .. }
         | E::SegmentNotTraced { .. }

@@ -168,6 +168,7 @@ impl Scene<'_> {
                 h.curvenet = Some(*curvenet);
                 self.name_error(source, h);
             }
+            Error::RestPose { source } => self.name_error(source, h),
             Error::SampleFarFromSurface { at, position, .. } => {
                 h.curvenet = Some(at.curvenet);
                 h.splines.push(at.spline);
