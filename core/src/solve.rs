@@ -437,6 +437,7 @@ impl Binding {
         for i in 0..rf.face.len() {
             let at = rf.start[i] as usize;
             let n = rf.start[i + 1] as usize - at;
+            debug_assert_eq!(self.face_laplacian_start[rf.face[i] as usize] as usize, lap);
             let lf = &self.face_laplacian[lap..lap + n * n];
             lap += n * n;
             let tails = &rf.tail[at..at + n];

@@ -267,12 +267,15 @@ impl KnotBinding {
 pub(crate) fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<([DVec3; 3], f64)> {
     let e1 = (b - a).normalize_or_zero();
     let cross = (b - a).cross(c - a);
-    let n = cross.normalize_or_zero();
-    let size = cross.length().sqrt();
-    if e1 == DVec3::ZERO || n == DVec3::ZERO || !(size > 0.0 && size.is_finite()) {
+    // The cross product's length once, for its normal (as `normalize_or_zero`
+    // scales by its reciprocal) and the size.
+    let length = cross.length();
+    let rcp = 1.0 / length;
+    if e1 == DVec3::ZERO || !(rcp.is_finite() && rcp > 0.0) {
         return None;
     }
-    Some(([e1, n.cross(e1), n], size))
+    let n = cross * rcp;
+    Some(([e1, n.cross(e1), n], length.sqrt()))
 }
 
 /// Per-curvenet offsets into the concatenated samples, segments and slots.
@@ -330,8 +333,12 @@ pub struct Binding {
     /// Per mesh vertex: its unknown, if any (none: on the curvenet, in an
     /// untouched component or in no face).
     pub(crate) vertex_unknown: Vec<Option<Unknown>>,
-    /// Per-cut-face Laplacians, row-major, concatenated (`face_start`-aligned squares).
+    /// Per-cut-face Laplacians, row-major `n_f × n_f` squares, concatenated
+    /// with the faces a rest-pose frame visits first, in its visiting order
+    /// ([`rhs::RestFaces::laplacians_in_visiting_order`]).
     pub(crate) face_laplacian: Vec<f64>,
+    /// Per cut-face, where its square starts in `face_laplacian` (its end
+    /// is the face's size squared further).
     pub(crate) face_laplacian_start: Vec<u32>,
     /// `VᵀL_hC`: unknowns × constraint rows.
     pub(crate) b: Csr,
