@@ -324,6 +324,36 @@ fn a_non_finite_control_point_fails_the_bake_naming_frame_and_prim_and_writes_no
 }
 
 #[test]
+fn a_control_point_beyond_1e15_fails_the_bake_as_the_service_refuses_it() {
+    // Finite in f32, but beyond the service's MAX_COORDINATE (hostile review F3).
+    let dir = temp_dir("huge");
+    let shot = grid_shot(&dir, |t, pool| {
+        if t == 2 {
+            pool[5][0] = -3.0e20;
+            pool[9][2] = 2.0e16;
+        }
+    });
+    let run = bake(shot.to_str().unwrap(), &dir.join("bake.usdc"), &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(err.contains("frame 2, /Grid/Curvenet:") && err.contains("control point 5"), "{err}");
+    assert!(err.contains("beyond 1e15 in magnitude (2 such control points in all)"), "{err}");
+    assert!(!dir.join("bake.usdc").exists(), "a failed bake wrote its output");
+    // At the bound the frame reaches the core, which finds the curves there
+    // degenerate (as the service would).
+    let shot = grid_shot(&dir, |t, pool| {
+        if t == 2 {
+            pool[5][0] = -1.0e15;
+        }
+    });
+    let run = bake(shot.to_str().unwrap(), &dir.join("bake.usdc"), &["--frames", "1-2"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(!err.contains("beyond") && err.contains("collinear"), "{err}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn the_output_may_not_replace_the_input() {
     let run = bake(SHOT, &repo().join(SHOT), &["--frames", "1"]);
     assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));

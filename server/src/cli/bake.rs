@@ -74,7 +74,7 @@ frame). Without --frames: the stage's startTimeCode..endTimeCode, else the
 union of the curvenets' and meshes' time samples.
 
 Exit status: 0 success; 2 bad input, not worth retrying (a stage that breaks the
-contract, a bad frame - non-finite or miscounted control points, a core error -
+contract, a bad frame - non-finite, beyond 1e15 or miscounted points, a core error -
 named as `frame F, PRIM: ...`, a bad --frames or output extension); 75 an I/O
 failure writing OUTPUT, worth retrying: this includes an output directory that
 does not exist (checked before any work, so a retry costs nothing); an OUTPUT
@@ -571,14 +571,30 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
         .collect()
 }
 
+/// Checks a frame's points as the service does (`MAX_COORDINATE`): finite,
+/// and at most 1e15 in magnitude (an f32 output spaces its values 1e8 apart
+/// there, so larger values are no longer geometry).
 fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: &str) -> CliResult {
-    let bad: Vec<usize> = (0..points.len()).filter(|&i| !points[i].iter().all(|x| x.is_finite())).collect();
-    match bad.first() {
-        None => Ok(()),
-        Some(&i) => Err(CliError::Input(format!(
+    let limit = curvenet_server::MAX_COORDINATE;
+    let non_finite: Vec<usize> = (0..points.len()).filter(|&i| !points[i].iter().all(|x| x.is_finite())).collect();
+    let in_all = |bad: &[usize], kind: &str| match bad.len() {
+        1 => String::new(),
+        n => format!(" ({n} {kind} {what}s in all)"),
+    };
+    if let Some(&i) = non_finite.first() {
+        return Err(CliError::Input(format!(
             "frame {t}, {prim}: {attribute} {what} {i} is {:?}, not finite{}",
             points[i],
-            if bad.len() > 1 { format!(" ({} non-finite {what}s in all)", bad.len()) } else { String::new() }
+            in_all(&non_finite, "non-finite")
+        )));
+    }
+    let huge: Vec<usize> = (0..points.len()).filter(|&i| points[i].iter().any(|x| x.abs() > limit)).collect();
+    match huge.first() {
+        None => Ok(()),
+        Some(&i) => Err(CliError::Input(format!(
+            "frame {t}, {prim}: {attribute} {what} {i} is {:?}, beyond {limit:e} in magnitude{}",
+            points[i],
+            in_all(&huge, "such")
         ))),
     }
 }
