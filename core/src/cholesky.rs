@@ -47,7 +47,10 @@
 //! both orderings agree to 1e-13 relative (`core/tests/ordering_export.rs`
 //! checks 1e-10 on the 22k hand). A geometric nested dissection was not
 //! tried: METIS's separators are at least as good as geometric ones on a
-//! surface mesh, and they lose here. Only on the 94k hand subdivided 1-to-4
+//! surface mesh, and they lose here. A nested dissection by level
+//! structures (George's, AMD on the small parts) was written and measured
+//! in the tenth session and dropped: 1.5× AMD's fill at 376k (README,
+//! "Nested dissection of our own"). Only on the 94k hand subdivided 1-to-4
 //! (375,911 unknowns, the bench's growth row) does METIS win: 12.6M → 9.1M
 //! nonzeros (0.72×), the two solves 376 → 296 ms, but the factorisation
 //! 4.3 → 6.5 s (its ordering alone 5.6 s at load 9.5); AMD stays the
