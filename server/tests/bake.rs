@@ -353,6 +353,57 @@ fn a_control_point_beyond_1e15_fails_the_bake_as_the_service_refuses_it() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The hand_wave shot under an over layer on /Hand (its body given).
+fn wave_over(dir: &Path, body: &str) -> PathBuf {
+    std::fs::write(dir.join("over.usda"), format!("#usda 1.0\n\nover \"Hand\"\n{{\n{body}\n}}\n")).unwrap();
+    let shot = dir.join("shot.usda");
+    let wave = repo().join(SHOT);
+    let text = format!(
+        "#usda 1.0\n(\n    startTimeCode = 1\n    endTimeCode = 24\n    subLayers = [@./over.usda@, @{}@]\n)\n",
+        wave.display()
+    );
+    std::fs::write(&shot, text).unwrap();
+    shot
+}
+
+#[test]
+fn a_blend_shape_weight_beyond_1e6_fails_the_bake_as_the_service_refuses_it() {
+    // Hostile review (tenth session): a weight of 3e38 wrote inf points with exit 0.
+    let dir = temp_dir("weight");
+    let weights = "    over \"Skel\"\n    {\n        over \"Anim\"\n        {\n            float[] blendShapeWeights.timeSamples = {\n                9: [0.5],\n                10: [1e7],\n            }\n        }\n    }";
+    let shot = wave_over(&dir, weights);
+    let out = dir.join("bake.usdc");
+    let run = bake(shot.to_str().unwrap(), &out, &["--frames", "9-10"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(err.contains("frame 10, /Hand/Mesh: skel:blendShapeWeights weight 0 is 10000000"), "{err}");
+    assert!(!out.exists(), "a failed bake wrote its output");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_frame_deformed_past_f32_fails_the_bake_and_writes_nothing() {
+    // Weight 1e6 (allowed) times offsets of 1e33 (the bake does not bound a
+    // blend shape's offsets) is past f32's largest value: refused, not
+    // written as inf.
+    let dir = temp_dir("overflow");
+    let offsets = vec!["(1e33, 0, 0)"; 23].join(", ");
+    let body = format!(
+        "    over \"Mesh\"\n    {{\n        over \"Bulge\"\n        {{\n            uniform vector3f[] offsets = [{offsets}]\n        }}\n    }}\n    over \"Skel\"\n    {{\n        over \"Anim\"\n        {{\n            float[] blendShapeWeights.timeSamples = {{\n                9: [0],\n                10: [1e6],\n            }}\n        }}\n    }}"
+    );
+    let shot = wave_over(&dir, &body);
+    let out = dir.join("bake.usda");
+    let run = bake(shot.to_str().unwrap(), &out, &["--frames", "9-10"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(err.contains("frame 10, /Hand/Mesh: deformed point ") && err.contains("not finite in f32"), "{err}");
+    assert!(!out.exists(), "a failed bake wrote its output");
+    // Frame 9 (weight 0) alone bakes.
+    let run = bake(shot.to_str().unwrap(), &out, &["--frames", "9"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn the_output_may_not_replace_the_input() {
     let run = bake(SHOT, &repo().join(SHOT), &["--frames", "1"]);

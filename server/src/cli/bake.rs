@@ -74,12 +74,13 @@ frame). Without --frames: the stage's startTimeCode..endTimeCode, else the
 union of the curvenets' and meshes' time samples.
 
 Exit status: 0 success; 2 bad input, not worth retrying (a stage that breaks the
-contract, a bad frame - non-finite, beyond 1e15 or miscounted points, a core error -
-named as `frame F, PRIM: ...`, a bad --frames or output extension); 75 an I/O
-failure writing OUTPUT, worth retrying: this includes an output directory that
-does not exist (checked before any work, so a retry costs nothing); an OUTPUT
-that can never be written (a file where a directory must be, a directory, a
-name too long) is bad input, 2.
+contract, a bad frame - non-finite or miscounted points, points beyond 1e15 or
+blend-shape weights beyond 1e6 (the service's bounds), a result past f32, a
+core error - named as `frame F, PRIM: ...`, a bad --frames or output
+extension); 75 an I/O failure writing OUTPUT, worth retrying: this includes an
+output directory that does not exist (checked before any work, so a retry
+costs nothing); an OUTPUT that can never be written (a file where a directory
+must be, a directory, a name too long) is bad input, 2.
 
 Progress: on a terminal, a line of frames done, frames per second and ETA; else
 one summary line on stderr at the end (meshes, frames, bind and mean solve time
@@ -555,6 +556,7 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                         true => Vec::new(),
                         false => stage.blend_shape_weights(&job.mesh, Some(t)).map_err(at)?,
                     };
+                    check_weights(&weights, t, &job.mesh.path)?;
                     let transforms = match &job.joints {
                         Some(rig) => Some(rig.read_transforms(stage, Some(t)).map_err(|e| match e {
                             CliError::Usd(u) => at(u),
@@ -595,6 +597,19 @@ fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: 
             "frame {t}, {prim}: {attribute} {what} {i} is {:?}, beyond {limit:e} in magnitude{}",
             points[i],
             in_all(&huge, "such")
+        ))),
+    }
+}
+
+/// Checks a frame's blend-shape weights as the service does (`MAX_WEIGHT`):
+/// finite and at most 1e6 in magnitude.
+fn check_weights(weights: &[f64], t: f64, prim: &str) -> CliResult {
+    let limit = curvenet_server::MAX_WEIGHT;
+    match weights.iter().position(|w| !(w.is_finite() && w.abs() <= limit)) {
+        None => Ok(()),
+        Some(i) => Err(CliError::Input(format!(
+            "frame {t}, {prim}: skel:blendShapeWeights weight {i} is {}, not finite or beyond {limit:e} in magnitude",
+            weights[i]
         ))),
     }
 }
@@ -676,7 +691,19 @@ fn solve_group(job: &MeshJob, k: usize, frames: &[FrameData], solve_ns: &AtomicU
         },
     })?;
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-    Ok(points.iter().map(|out| out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect()).collect())
+    let written: Vec<Vec<[f32; 3]>> =
+        points.iter().map(|out| out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect()).collect();
+    // Inputs within bounds can still deform past f32 (a rig's transforms, a
+    // blend shape's large offsets): such a frame is refused, never written.
+    for ((frame, out), solved) in frames.iter().zip(&written).zip(&points) {
+        if let Some(i) = out.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+            return Err(CliError::Input(format!(
+                "frame {}, {}: deformed point {i} is {:?}, not finite in f32 (the output's type)",
+                frame.time, job.mesh.path, solved[i]
+            )));
+        }
+    }
+    Ok(written)
 }
 
 /// The progress line on a terminal (stderr), redrawn at most every 100 ms.

@@ -48,7 +48,7 @@ mod state;
 mod viewer;
 
 pub use bake::{BakeFailure, BakeJob, Baker, names_a_directory};
-pub use binding::MAX_COORDINATE;
+pub use binding::{MAX_COORDINATE, MAX_WEIGHT};
 pub use error::{Code, ServiceError};
 pub use limits::{
     DEFAULT_MAX_BINDING_TIME, DEFAULT_MAX_SAMPLE_DENSITY, DEFAULT_MAX_SEGMENTS_PER_VERTEX, MIN_SEGMENT_ALLOWANCE,
