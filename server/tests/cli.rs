@@ -50,6 +50,41 @@ fn bad_input_exits_2_and_names_the_problem() {
 
 /// A misspelt `CURVENET_SIMD` (meant to rule a vector unit out) is warned
 /// about, naming the value, and the command still runs; a known value is not.
+/// Hostile review (tenth session): `--threads 100000` started every
+/// thread, `serve --max-solves 0` served 503 forever, and `bake --frames
+/// 1-1000000` grew until the machine ran out of memory.
+#[test]
+fn runaway_thread_counts_zero_limits_and_oversized_bakes_are_refused_up_front() {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let too_many = (4 * cpus + 1).to_string();
+    let wave = "fixtures/shots/hand_wave/shot.usda";
+    let out = std::env::temp_dir().join(format!("curvenet-cli-refused-{}.usdc", std::process::id()));
+    let out = out.to_str().unwrap();
+    let runs: [(&[&str], &str); 8] = [
+        (&["bake", wave, "--out", out, "--threads", &too_many], "--threads"),
+        (&["bench", "--meshes", "hand_1k4", "--no-growth", "--threads", &too_many], "--threads"),
+        (&["serve", "--addr", "127.0.0.1:0", "--solve-threads", &too_many], "--solve-threads"),
+        (&["serve", "--addr", "127.0.0.1:0", "--max-solves", "0"], "--max-solves"),
+        (&["serve", "--addr", "127.0.0.1:0", "--max-batch-memory", "0"], "--max-batch-memory"),
+        (&["serve", "--addr", "127.0.0.1:0", "--max-batch-bytes", "0B"], "--max-batch-bytes"),
+        (&["serve", "--addr", "127.0.0.1:0", "--max-bake-bytes", "0"], "--max-bake-bytes"),
+        // 24 frames × 1400 vertices × 12 bytes = 403,200 bytes.
+        (&["bake", wave, "--out", out, "--max-points-bytes", "400KB"], "403200 bytes of points"),
+    ];
+    for (args, names) in runs {
+        let run = curvenet(args);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(names), "{args:?}: {err}");
+        assert!(!std::path::Path::new(out).exists(), "{args:?} wrote {out}");
+    }
+    let run = curvenet(&["bake", wave, "--out", out, "--threads", &(4 * cpus).to_string(), "--quiet"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let run = curvenet(&["bake", wave, "--out", out, "--max-points-bytes", "404KB", "--quiet"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    std::fs::remove_file(out).unwrap();
+}
+
 #[test]
 fn an_unknown_curvenet_simd_value_is_warned_about() {
     let run = |value: &str| {

@@ -106,6 +106,11 @@ pub struct Args {
     #[arg(long, value_name = "K", default_value_t = DEFAULT_BATCH_FRAMES,
         value_parser = clap::value_parser!(u32).range(1..=curvenet_core::MAX_BATCH_FRAMES as i64))]
     pub batch_frames: u32,
+    /// Refuse (exit 2, before any binding) a bake whose points (frames ×
+    /// vertices × 12 bytes, all held until the layer is written) exceed
+    /// this, e.g. 8GiB (default: half of this machine's memory).
+    #[arg(long, value_name = "BYTES", value_parser = super::serve::parse_bytes)]
+    pub max_points_bytes: Option<u64>,
     /// No progress line and no summary.
     #[arg(long, short)]
     pub quiet: bool,
@@ -255,9 +260,11 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
     if same_file(&args.input, &args.out) {
         return Err(CliError::Input(format!("{}: the output would replace the input", args.out.display())));
     }
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads.map_or(0, NonZeroUsize::get)).build().map_err(
-        |e| CliError::Input(format!("cannot start {} worker threads: {e}", args.threads.map_or(0, NonZeroUsize::get))),
-    )?;
+    let threads = super::check_threads("--threads", args.threads.map_or(0, NonZeroUsize::get))?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| CliError::Input(format!("cannot start {threads} worker threads: {e}")))?;
 
     let stage = if args.confine.is_empty() {
         Stage::open(&args.input)?
@@ -281,14 +288,24 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
     }
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs, warn)?;
-    if let Some(max) = bounds.max_points_bytes {
+    // The command line's bound: --max-points-bytes, else half the memory.
+    let (max_points, limit_name) = match bounds.max_points_bytes {
+        Some(max) => (Some(max), "this server's limit (--max-bake-bytes, CURVENET_MAX_BAKE_BYTES)"),
+        None => match args.max_points_bytes {
+            Some(max) => (Some(max), "the limit (--max-points-bytes)"),
+            None => {
+                (super::half_of_memory(), "the limit (--max-points-bytes; by default half of this machine's memory)")
+            }
+        },
+    };
+    if let Some(max) = max_points {
         let vertices: usize = inputs.iter().map(|(m, _, _)| m.projection_points.len()).sum();
         let bytes = frames.len() as u128 * vertices as u128 * 12;
         if bytes > max as u128 {
             return Err(CliError::Limit(format!(
                 "{}: {} frames of {vertices} vertices are {bytes} bytes of points, all held until the layer is \
-                 written; this server's limit is {max} (--max-bake-bytes, CURVENET_MAX_BAKE_BYTES): bake fewer \
-                 frames at once (frames A-B) and stitch the layers",
+                 written, over {limit_name} of {max} bytes: bake fewer frames at once (--frames A-B) and stitch \
+                 the layers",
                 stage.path(),
                 frames.len()
             )));

@@ -342,10 +342,7 @@ pub fn run(args: &Args) -> CliResult {
         )));
     }
     let files = args.meshes.iter().map(|m| fixture_file(dir, m)).collect::<CliResult<Vec<_>>>()?;
-    let threads = match args.threads {
-        Some(t) => t as usize,
-        None => std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
-    };
+    let threads = super::check_threads("--threads", args.threads.map_or(0, |t| t as usize))?;
     let (repeats, frames) = (args.repeats as usize, args.frames as usize);
     let corpus = if args.no_corpus { Vec::new() } else { corpus_files(dir)? };
     // The growth row grows a mesh benched in this run (its frame is the

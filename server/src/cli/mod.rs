@@ -66,6 +66,35 @@ fn is_transient(message: &str) -> bool {
 
 pub type CliResult<T = ()> = Result<T, CliError>;
 
+/// Worker threads a command may start per CPU: more only add memory (a
+/// stack and a solve workspace each) and switching, and a typo such as
+/// `--threads 100000` would otherwise start them all.
+pub const MAX_THREADS_PER_CPU: usize = 4;
+
+/// Checks a thread-count flag against [`MAX_THREADS_PER_CPU`] × this
+/// machine's CPUs; `0` (where the flag allows it) is one per CPU.
+pub fn check_threads(flag: &str, threads: usize) -> CliResult<usize> {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let most = MAX_THREADS_PER_CPU * cpus;
+    match threads {
+        0 => Ok(cpus),
+        t if t <= most => Ok(t),
+        t => Err(CliError::Input(format!(
+            "{flag} {t}: at most {most} on this machine ({MAX_THREADS_PER_CPU} per CPU, {cpus} CPUs); more threads \
+             only add memory and switching"
+        ))),
+    }
+}
+
+/// Half of this machine's memory (`MemTotal` in `/proc/meminfo`), `None`
+/// where it cannot be read: the default bound on what one command holds.
+pub fn half_of_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024 / 2)
+}
+
 /// The deformer of `mesh` (its projection pose, its blend shapes) and its
 /// curvenets, as the bake and `inspect --bind` build it: through
 /// [`curvenet_core::Deformer::new`], each curvenet sampled at its own density

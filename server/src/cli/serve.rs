@@ -105,7 +105,7 @@ pub struct Args {
 }
 
 /// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB.
-fn parse_bytes(s: &str) -> Result<u64, String> {
+pub(crate) fn parse_bytes(s: &str) -> Result<u64, String> {
     let s = s.trim();
     let split = s.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(s.len());
     let (num, unit) = s.split_at(split);
@@ -154,6 +154,19 @@ pub fn run(args: &Args) -> CliResult {
             return Err(CliError::Input(format!("{flag} must be a positive number, got {x}")));
         }
     }
+    // A zero limit would refuse every request while the server looks healthy.
+    for (flag, x) in [
+        ("--max-solves", args.max_solves as u64),
+        ("--body-limit", args.body_limit),
+        ("--max-batch-bytes", args.max_batch_bytes),
+        ("--max-batch-memory", args.max_batch_memory),
+        ("--max-bake-bytes", args.max_bake_bytes),
+    ] {
+        if x == 0 {
+            return Err(CliError::Input(format!("{flag} must be positive: 0 would refuse every request")));
+        }
+    }
+    super::check_threads("--solve-threads", args.solve_threads)?;
     let filter = std::env::var("CURVENET_LOG").or_else(|_| std::env::var("RUST_LOG")).unwrap_or_else(|_| "info".into());
     let _ = tracing_subscriber::fmt()
         .with_env_filter(tracing_subscriber::EnvFilter::new(filter))
