@@ -112,3 +112,71 @@ fn bench_refuses_a_missing_fixtures_directory() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no/such/dir") && err.contains("--fixtures"), "{err}");
 }
+
+/// Hostile review (tenth session): these ran, or ran to the end, before
+/// failing or being ignored.
+#[test]
+fn bench_refuses_repeated_meshes_a_foreign_growth_mesh_and_bad_export_paths_up_front() {
+    let dir = std::env::temp_dir().join(format!("curvenet-bench-refusals-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let afile = dir.join("afile");
+    std::fs::write(&afile, "x").unwrap();
+    let quick = ["bench", "--json", "--repeats", "1", "--frames", "2", "--no-corpus", "--no-cage"];
+    let runs: [(Vec<&str>, &str); 4] = [
+        (vec!["--meshes", "hand_1k4,hand_1k4"], "--meshes names hand_1k4 twice"),
+        (vec!["--meshes", "hand_1k4", "--growth-mesh", "nosuch"], "--growth-mesh nosuch is not among --meshes"),
+        (vec!["--meshes", "hand_1k4", "--fixtures", "README.md"], "`README.md` is not a directory"),
+        (vec!["--meshes", "hand_1k4", "--export", afile.to_str().unwrap()], "exists and is not a directory"),
+    ];
+    for (args, says) in runs {
+        let all: Vec<&str> = quick.iter().copied().chain(args.iter().copied()).collect();
+        let out = curvenet(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+    // The manifest cannot be written (a directory holds its name): the run
+    // fails and removes the mesh files it wrote, so no export is left
+    // without its manifest.
+    let export = dir.join("export");
+    std::fs::create_dir_all(export.join("manifest.json")).unwrap();
+    let all: Vec<&str> = quick
+        .iter()
+        .copied()
+        .chain(["--meshes", "hand_1k4", "--no-growth", "--export", export.to_str().unwrap()])
+        .collect();
+    let out = curvenet(&all);
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    let left: Vec<String> =
+        std::fs::read_dir(&export).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(left, ["manifest.json"], "a failed export left files");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bench_json_judges_the_hand_22k_against_both_issues_targets() {
+    let out = curvenet(&[
+        "bench",
+        "--json",
+        "--meshes",
+        "hand_22k",
+        "--repeats",
+        "1",
+        "--frames",
+        "2",
+        "--no-corpus",
+        "--no-cage",
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    let m = &v["meshes"][0];
+    let t = &m["targets"];
+    let f = |v: &serde_json::Value, k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} in {v}"));
+    assert_eq!((f(t, "frame_ms"), f(t, "batch_frames_per_s"), f(t, "group16_over_reference")), (3.0, 1200.0, 3.0));
+    assert_eq!(t["frame_met"].as_bool(), Some(f(m, "solve_ms") <= 3.0), "{t}");
+    assert_eq!(t["batch_met"].as_bool(), Some(f(m, "batch_frames_per_s") >= 1200.0), "{t}");
+    let k16 = m["batch"].as_array().unwrap().iter().find(|r| r["k"] == 16).expect("a group of 16 is timed");
+    assert_eq!(t["group16_met"].as_bool(), Some(f(k16, "per_frame_over_reference") <= 3.0), "{t}");
+    assert_eq!(t["binding_met"].as_bool(), Some(f(m, "binding_ms") <= 150.0), "{t}");
+}

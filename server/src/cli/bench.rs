@@ -81,8 +81,10 @@
 //! [...], "corpus": [...]}`, one entry per hand mesh with (at least) `mesh`,
 //! `vertices`, `faces`, `knots`, `samples`, `cutting_ms`, `factor_ms`,
 //! `solve_ms`, `binding_ms`, all the other measurements under their field
-//! names (see `MeshBench`), `targets` (null for meshes the issue sets
-//! none for), `batch` (per K: `k`, `per_frame_ms`, `per_frame_over_reference`,
+//! names (see `MeshBench`), `targets` (hand_22k and hand_94k: issue #5's
+//! `solve_ms`, `solve_stretch_ms`, `binding_ms` and issue #19's `frame_ms`,
+//! `batch_frames_per_s`, `group16_over_reference`, each with its `*_met`;
+//! null for other meshes), `batch` (per K: `k`, `per_frame_ms`, `per_frame_over_reference`,
 //! `frames_per_s`), `batch_k`, `batch_frames_per_s`, `batch_over_reference` and
 //! `rest_batch` (the same figures for groups of 8 frames with their own rest
 //! pose); one entry per corpus mesh (see `CorpusBench`). Times are milliseconds.
@@ -153,9 +155,10 @@ pub struct Args {
     /// only made when that mesh is among `--meshes`, as it is by default).
     #[arg(long)]
     pub no_growth: bool,
-    /// The hand fixture the growth row subdivides.
-    #[arg(long, default_value = "hand_94k")]
-    pub growth_mesh: String,
+    /// The hand fixture the growth row subdivides (default hand_94k, left
+    /// out when not among `--meshes`; named here, it must be).
+    #[arg(long)]
+    pub growth_mesh: Option<String>,
     /// Bindings of the growth mesh (times are medians).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub growth_repeats: u32,
@@ -172,6 +175,8 @@ struct Extra<'a> {
     orderings: bool,
     export: Option<&'a Path>,
     exported: Vec<export::Exported>,
+    /// Every file the export wrote (or began), removed if the export fails.
+    export_written: Vec<PathBuf>,
 }
 
 /// The pose `--export` writes: the finger curl at frame 1 of 4 (30°).
@@ -322,9 +327,20 @@ struct Targets {
     solve_met: bool,
     solve_stretch_met: bool,
     binding_met: bool,
+    /// Issue #19's: the single frame, the best group's frames per second
+    /// on all threads, and a frame in a group of 16 over the copy reference.
+    frame_ms: f64,
+    frame_met: bool,
+    batch_frames_per_s: f64,
+    batch_met: bool,
+    group16_over_reference: f64,
+    group16_met: Option<bool>,
 }
 
-/// The issue's targets: (solve, stretch solve, binding) in ms.
+/// The growth row's mesh unless `--growth-mesh` names another.
+const DEFAULT_GROWTH_MESH: &str = "hand_94k";
+
+/// Issue #5's targets: (solve, stretch solve, binding) in ms.
 fn targets_for(mesh: &str) -> Option<(f64, f64, f64)> {
     match mesh {
         "hand_22k" => Some((9.7, 5.0, 150.0)),
@@ -333,13 +349,47 @@ fn targets_for(mesh: &str) -> Option<(f64, f64, f64)> {
     }
 }
 
+/// Issue #19's targets: (single frame ms, best group's frames/s on all
+/// threads); a frame in a group of 16 is at most [`GROUP16_OVER_REFERENCE`]
+/// × the copy reference on both meshes.
+fn throughput_targets_for(mesh: &str) -> Option<(f64, f64)> {
+    match mesh {
+        "hand_22k" => Some((3.0, 1200.0)),
+        "hand_94k" => Some((15.0, 250.0)),
+        _ => None,
+    }
+}
+
+const GROUP16_OVER_REFERENCE: f64 = 3.0;
+
 pub fn run(args: &Args) -> CliResult {
     let dir = &args.fixtures;
     if !dir.is_dir() {
+        let what = if dir.exists() { "is not a directory" } else { "not found" };
         return Err(CliError::Input(format!(
-            "fixtures directory `{}` not found (run from the repository root or pass --fixtures DIR)",
+            "fixtures directory `{}` {what} (run from the repository root or pass --fixtures DIR)",
             dir.display()
         )));
+    }
+    if let Some((k, m)) = args.meshes.iter().enumerate().find(|(k, m)| args.meshes[..*k].contains(m)) {
+        return Err(CliError::Input(format!("--meshes names {m} twice (the second time as mesh {})", k + 1)));
+    }
+    let growth_mesh = args.growth_mesh.clone().unwrap_or_else(|| DEFAULT_GROWTH_MESH.to_string());
+    if let Some(g) = &args.growth_mesh
+        && !args.no_growth
+        && !args.meshes.contains(g)
+    {
+        return Err(CliError::Input(format!(
+            "--growth-mesh {g} is not among --meshes ({}): the growth row's frame is judged against that mesh's",
+            args.meshes.join(",")
+        )));
+    }
+    if let Some(export) = &args.export {
+        if export.exists() && !export.is_dir() {
+            return Err(CliError::Input(format!("bench --export {}: exists and is not a directory", export.display())));
+        }
+        std::fs::create_dir_all(export)
+            .map_err(|source| CliError::Io { context: format!("bench --export {}", export.display()), source })?;
     }
     let files = args.meshes.iter().map(|m| fixture_file(dir, m)).collect::<CliResult<Vec<_>>>()?;
     let threads = super::check_threads("--threads", args.threads.map_or(0, |t| t as usize))?;
@@ -347,8 +397,8 @@ pub fn run(args: &Args) -> CliResult {
     let corpus = if args.no_corpus { Vec::new() } else { corpus_files(dir)? };
     // The growth row grows a mesh benched in this run (its frame is the
     // reference of the row's frame target): none when that mesh is not.
-    let grow = !args.no_growth && args.meshes.contains(&args.growth_mesh);
-    let growth_file = if grow { Some(fixture_file(dir, &args.growth_mesh)?) } else { None };
+    let grow = !args.no_growth && args.meshes.contains(&growth_mesh);
+    let growth_file = if grow { Some(fixture_file(dir, &growth_mesh)?) } else { None };
     let mut report = Report {
         threads,
         simd: curvenet_core::simd::Simd::detect().name(),
@@ -359,15 +409,30 @@ pub fn run(args: &Args) -> CliResult {
         growth: None,
         cage: Vec::new(),
     };
-    let mut extra = Extra { orderings: args.orderings, export: args.export.as_deref(), exported: Vec::new() };
-    for (name, file) in args.meshes.iter().zip(&files) {
-        if !args.json {
-            eprintln!("curvenet bench: {name}: {repeats} bindings, {frames} frames…");
+    let mut extra = Extra {
+        orderings: args.orderings,
+        export: args.export.as_deref(),
+        exported: Vec::new(),
+        export_written: Vec::new(),
+    };
+    let mut hands = || -> CliResult {
+        for (name, file) in args.meshes.iter().zip(&files) {
+            if !args.json {
+                eprintln!("curvenet bench: {name}: {repeats} bindings, {frames} frames…");
+            }
+            report.meshes.push(bench_mesh(name, file, repeats, frames, threads, &mut extra)?);
         }
-        report.meshes.push(bench_mesh(name, file, repeats, frames, threads, &mut extra)?);
-    }
-    if let Some(dir) = &args.export {
-        export::write_manifest(dir, &extra.exported)?;
+        if let Some(dir) = &args.export {
+            export::write_manifest(dir, &extra.exported, &mut extra.export_written)?;
+        }
+        Ok(())
+    };
+    if let Err(e) = hands() {
+        // No export without its manifest: what this run wrote goes.
+        for path in &extra.export_written {
+            let _ = std::fs::remove_file(path);
+        }
+        return Err(e);
     }
     if !args.no_cage {
         if !args.json {
@@ -385,7 +450,7 @@ pub fn run(args: &Args) -> CliResult {
         report.corpus.push(bench_corpus_mesh(name, file, repeats, corpus_frames, args.orderings)?);
     }
     if let Some(file) = &growth_file {
-        let name = &args.growth_mesh;
+        let name = &growth_mesh;
         let (g_repeats, g_frames) = (args.growth_repeats as usize, args.growth_frames as usize);
         if !args.json {
             eprintln!("curvenet bench: growth: {name} subdivided 1-to-4, {g_repeats} bindings, {g_frames} frames…");
@@ -647,7 +712,7 @@ fn bench_mesh(
         let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
         let angle_deg = MAX_ANGLE_DEG * 0.5 * (1.0 - (std::f64::consts::TAU * index as f64 / of as f64).cos());
         let frame = export::ExportedFrame { index, frames: of, angle_deg };
-        extra.exported.push(export::export_mesh(dir, name, binding, &posed, frame)?);
+        extra.exported.push(export::export_mesh(dir, name, binding, &posed, frame, &mut extra.export_written)?);
     }
 
     // Throughput across frames.
@@ -665,13 +730,20 @@ fn bench_mesh(
     let solve_cpu = deform_t.cpu();
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
     let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);
-    let targets = targets_for(name).map(|(s, st, b)| Targets {
+    let group16 = batch.batch.iter().find(|r| r.k == 16).map(|r| r.per_frame_over_reference);
+    let targets = targets_for(name).zip(throughput_targets_for(name)).map(|((s, st, b), (f, fps))| Targets {
         solve_ms: s,
         solve_stretch_ms: st,
         binding_ms: b,
         solve_met: solve_ms <= s,
         solve_stretch_met: solve_ms <= st,
         binding_met: binding_ms <= b,
+        frame_ms: f,
+        frame_met: solve_ms <= f,
+        batch_frames_per_s: fps,
+        batch_met: batch.batch_frames_per_s >= fps,
+        group16_over_reference: GROUP16_OVER_REFERENCE,
+        group16_met: group16.map(|g| g <= GROUP16_OVER_REFERENCE),
     });
     Ok(MeshBench {
         mesh: name.to_string(),
@@ -1208,7 +1280,7 @@ fn text_report(r: &Report) -> String {
     let with_targets: Vec<&MeshBench> = r.meshes.iter().filter(|m| m.targets.is_some()).collect();
     if !with_targets.is_empty() {
         let _ = writeln!(s);
-        let _ = writeln!(s, "Targets of the issue (informative; the bench never fails on them)");
+        let _ = writeln!(s, "Targets of the issues (informative; the bench never fails on them)");
         let met = |b: bool| if b { "met" } else { "NOT met" };
         for m in with_targets {
             let t = m.targets.expect("filtered");
@@ -1224,6 +1296,21 @@ fn text_report(r: &Report) -> String {
                 m.binding_ms,
                 t.binding_ms,
                 met(t.binding_met)
+            );
+            let group16 = m.batch.batch.iter().find(|r| r.k == 16).map(|r| r.per_frame_over_reference);
+            let _ = writeln!(
+                s,
+                "{:<w$} issue #19: frame {:.2} ms ≤ {} ms: {}; best group {:.0} frames/s ≥ {}: {}; group of 16 {} ≤ {}× the copy reference: {}",
+                "",
+                m.solve_ms,
+                t.frame_ms,
+                met(t.frame_met),
+                m.batch.batch_frames_per_s,
+                t.batch_frames_per_s,
+                met(t.batch_met),
+                group16.map_or("not run".to_string(), |g| format!("{g:.1}×")),
+                t.group16_over_reference,
+                t.group16_met.map_or("not run", met),
             );
             if let (Some(sc), Some(dc)) = (m.solve_cpu_ms, m.deformer_cpu_ms) {
                 let _ = writeln!(

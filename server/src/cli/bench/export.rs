@@ -23,7 +23,7 @@
 //! (`Binding::frame_system` records them), not recomputed.
 
 use std::io::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use curvenet_core::Binding;
 use serde::Serialize;
@@ -65,6 +65,7 @@ struct Format {
     rhs9: &'static str,
     rhs3: &'static str,
     unknown_vertex: &'static str,
+    frame: &'static str,
 }
 
 fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
@@ -79,6 +80,7 @@ pub(super) fn export_mesh(
     binding: &Binding,
     posed: &[Option<&[[f64; 3]]>],
     frame: ExportedFrame,
+    written: &mut Vec<PathBuf>,
 ) -> CliResult<Exported> {
     std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let a = binding.system_matrix();
@@ -90,6 +92,7 @@ pub(super) fn export_mesh(
     let matrix = name("mtx");
     {
         let path = dir.join(&matrix);
+        written.push(path.clone());
         let file = std::fs::File::create(&path).map_err(io_err(&path))?;
         let mut w = std::io::BufWriter::new(file);
         let write = |w: &mut std::io::BufWriter<std::fs::File>| -> std::io::Result<()> {
@@ -109,12 +112,14 @@ pub(super) fn export_mesh(
     let vectors = [("rhs9.f64", &sys.rhs9), ("x9.f64", &sys.x9), ("rhs3.f64", &sys.rhs3), ("x3.f64", &sys.x3)];
     for (ext, values) in vectors {
         let path = dir.join(name(ext));
+        written.push(path.clone());
         let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
         std::fs::write(&path, bytes).map_err(io_err(&path))?;
     }
     let unknown_vertex = name("unknown_vertex.u32");
     {
         let path = dir.join(&unknown_vertex);
+        written.push(path.clone());
         let bytes: Vec<u8> = (0..a.n as u32)
             .flat_map(|u| binding.unknown_vertex(curvenet_core::ids::Unknown(u)).0.to_le_bytes())
             .collect();
@@ -135,7 +140,7 @@ pub(super) fn export_mesh(
 }
 
 /// Writes `DIR/manifest.json` for the exported meshes.
-pub(super) fn write_manifest(dir: &Path, meshes: &[Exported]) -> CliResult {
+pub(super) fn write_manifest(dir: &Path, meshes: &[Exported], written: &mut Vec<PathBuf>) -> CliResult {
     let manifest = Manifest {
         format: Format {
             matrix: "MatrixMarket coordinate real symmetric, lower triangle, 1-based, unknowns in the binding's order",
@@ -143,10 +148,13 @@ pub(super) fn write_manifest(dir: &Path, meshes: &[Exported]) -> CliResult {
             rhs9: "Eq. 4: n x 9, per unknown a row-major 3x3 deformation gradient; x9 its solution",
             rhs3: "Eq. 5: n x 3 positions; x3 its solution",
             unknown_vertex: "per unknown (row) its mesh vertex, 0-based, raw little-endian u32",
+            frame: "the exported pose: frame `index` of a `frames`-frame cycle of the bench's finger curl, bent \
+                    `angle_deg` (fixed, whatever --frames is)",
         },
         meshes,
     };
     let path = dir.join("manifest.json");
+    written.push(path.clone());
     let text = serde_json::to_string_pretty(&manifest).map_err(|e| CliError::Input(e.to_string()))?;
     std::fs::write(&path, text + "\n").map_err(io_err(&path))
 }
