@@ -398,6 +398,15 @@ fn a_frame_deformed_past_f32_fails_the_bake_and_writes_nothing() {
     let err = stderr(&run);
     assert!(err.contains("frame 10, /Hand/Mesh: deformed point ") && err.contains("not finite in f32"), "{err}");
     assert!(!out.exists(), "a failed bake wrote its output");
+    // Offsets of 1e12 at weight 1e6 fit in f32 but are beyond the 1e15 the
+    // bake accepts as input: refused too (the bake could not read them back).
+    let body = body.replace("1e33", "1e12");
+    let shot = wave_over(&dir, &body);
+    let run = bake(shot.to_str().unwrap(), &out, &["--frames", "9-10"]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let err = stderr(&run);
+    assert!(err.contains("frame 10, /Hand/Mesh: deformed point ") && err.contains("beyond 1e15"), "{err}");
+    assert!(!out.exists(), "a failed bake wrote its output");
     // Frame 9 (weight 0) alone bakes.
     let run = bake(shot.to_str().unwrap(), &out, &["--frames", "9"]);
     assert!(run.status.success(), "{}", stderr(&run));

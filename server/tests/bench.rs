@@ -151,6 +151,22 @@ fn bench_refuses_repeated_meshes_a_foreign_growth_mesh_and_bad_export_paths_up_f
     let left: Vec<String> =
         std::fs::read_dir(&export).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(left, ["manifest.json"], "a failed export left files");
+    // A failed export over an earlier one leaves no manifest naming files
+    // it overwrote or removed (second review).
+    let again = dir.join("again");
+    let all: Vec<&str> = quick
+        .iter()
+        .copied()
+        .chain(["--meshes", "hand_1k4", "--no-growth", "--export", again.to_str().unwrap()])
+        .collect();
+    let out = curvenet(&all);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(again.join("manifest.json").is_file());
+    std::fs::remove_file(again.join("hand_1k4.x3.f64")).unwrap();
+    std::fs::create_dir(again.join("hand_1k4.x3.f64")).unwrap();
+    let out = curvenet(&all);
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(!again.join("manifest.json").exists(), "a failed export left the earlier manifest");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -60,11 +60,13 @@ fn runaway_thread_counts_zero_limits_and_oversized_bakes_are_refused_up_front() 
     let wave = "fixtures/shots/hand_wave/shot.usda";
     let out = std::env::temp_dir().join(format!("curvenet-cli-refused-{}.usdc", std::process::id()));
     let out = out.to_str().unwrap();
-    let runs: [(&[&str], &str); 8] = [
+    let runs: [(&[&str], &str); 10] = [
         (&["bake", wave, "--out", out, "--threads", &too_many], "--threads"),
         (&["bench", "--meshes", "hand_1k4", "--no-growth", "--threads", &too_many], "--threads"),
         (&["serve", "--addr", "127.0.0.1:0", "--solve-threads", &too_many], "--solve-threads"),
         (&["serve", "--addr", "127.0.0.1:0", "--max-solves", "0"], "--max-solves"),
+        (&["serve", "--addr", "127.0.0.1:0", "--cache-bytes", "0"], "--cache-bytes"),
+        (&["serve", "--addr", "127.0.0.1:0", "--max-connections", "0"], "--max-connections"),
         (&["serve", "--addr", "127.0.0.1:0", "--max-batch-memory", "0"], "--max-batch-memory"),
         (&["serve", "--addr", "127.0.0.1:0", "--max-batch-bytes", "0B"], "--max-batch-bytes"),
         (&["serve", "--addr", "127.0.0.1:0", "--max-bake-bytes", "0"], "--max-bake-bytes"),

@@ -108,7 +108,8 @@ pub struct Args {
     pub batch_frames: u32,
     /// Refuse (exit 2, before any binding) a bake whose points (frames ×
     /// vertices × 12 bytes, all held until the layer is written) exceed
-    /// this, e.g. 8GiB (default: half of this machine's memory).
+    /// this, e.g. 2GiB (default: 1/8 of this machine's memory; a bake's peak
+    /// memory is about 3-4× its points).
     #[arg(long, value_name = "BYTES", value_parser = super::serve::parse_bytes)]
     pub max_points_bytes: Option<u64>,
     /// No progress line and no summary.
@@ -288,14 +289,15 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
     }
     let inputs = super::deformed_meshes(&stage, "bake")?;
     let frames = frames(&stage, args.frames, &inputs, warn)?;
-    // The command line's bound: --max-points-bytes, else half the memory.
+    // The command line's bound: --max-points-bytes, else 1/8 of the memory.
     let (max_points, limit_name) = match bounds.max_points_bytes {
         Some(max) => (Some(max), "this server's limit (--max-bake-bytes, CURVENET_MAX_BAKE_BYTES)"),
         None => match args.max_points_bytes {
             Some(max) => (Some(max), "the limit (--max-points-bytes)"),
-            None => {
-                (super::half_of_memory(), "the limit (--max-points-bytes; by default half of this machine's memory)")
-            }
+            None => (
+                super::memory_fraction(POINTS_SHARE_OF_MEMORY),
+                "the limit (--max-points-bytes; by default 1/8 of this machine's memory)",
+            ),
         },
     };
     if let Some(max) = max_points {
@@ -590,6 +592,12 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
         .collect()
 }
 
+/// The default `--max-points-bytes`: this share of the machine's memory.
+/// A bake's peak memory was measured at 2.8-3.6× its points' bytes (the
+/// points held, then the layer made from them and written; hand_wave, 5,000
+/// and 20,000 frames), so 1/8 keeps a bake under half the memory.
+const POINTS_SHARE_OF_MEMORY: u64 = 8;
+
 /// Checks a frame's points as the service does (`MAX_COORDINATE`): finite,
 /// and at most 1e15 in magnitude (an f32 output spaces its values 1e8 apart
 /// there, so larger values are no longer geometry).
@@ -710,12 +718,16 @@ fn solve_group(job: &MeshJob, k: usize, frames: &[FrameData], solve_ns: &AtomicU
     solve_ns.fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
     let written: Vec<Vec<[f32; 3]>> =
         points.iter().map(|out| out.iter().map(|p| [p[0] as f32, p[1] as f32, p[2] as f32]).collect()).collect();
-    // Inputs within bounds can still deform past f32 (a rig's transforms, a
-    // blend shape's large offsets): such a frame is refused, never written.
+    // Inputs within bounds can still deform far away (a rig's transforms, a
+    // blend shape's large offsets, a cage's edits, an adjustment): a frame
+    // whose points are past f32 or beyond the 1e15 every input is held to
+    // (so that the bake could not read its own output back) is refused,
+    // never written.
+    let limit = curvenet_server::MAX_COORDINATE;
     for ((frame, out), solved) in frames.iter().zip(&written).zip(&points) {
-        if let Some(i) = out.iter().position(|p| !p.iter().all(|x| x.is_finite())) {
+        if let Some(i) = out.iter().position(|p| !p.iter().all(|x| x.is_finite() && (x.abs() as f64) <= limit)) {
             return Err(CliError::Input(format!(
-                "frame {}, {}: deformed point {i} is {:?}, not finite in f32 (the output's type)",
+                "frame {}, {}: deformed point {i} is {:?}, not finite in f32 (the output's type) or beyond {limit:e}",
                 frame.time, job.mesh.path, solved[i]
             )));
         }

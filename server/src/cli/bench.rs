@@ -376,7 +376,6 @@ pub fn run(args: &Args) -> CliResult {
     }
     let growth_mesh = args.growth_mesh.clone().unwrap_or_else(|| DEFAULT_GROWTH_MESH.to_string());
     if let Some(g) = &args.growth_mesh
-        && !args.no_growth
         && !args.meshes.contains(g)
     {
         return Err(CliError::Input(format!(
@@ -390,6 +389,14 @@ pub fn run(args: &Args) -> CliResult {
         }
         std::fs::create_dir_all(export)
             .map_err(|source| CliError::Io { context: format!("bench --export {}", export.display()), source })?;
+        // The manifest is written last, so a directory holding one holds a
+        // whole export: an earlier export's manifest goes before its files
+        // are overwritten (a failed run would leave it naming them).
+        let manifest = export.join("manifest.json");
+        if manifest.is_file() {
+            std::fs::remove_file(&manifest)
+                .map_err(|source| CliError::Io { context: format!("bench --export {}", manifest.display()), source })?;
+        }
     }
     let files = args.meshes.iter().map(|m| fixture_file(dir, m)).collect::<CliResult<Vec<_>>>()?;
     let threads = super::check_threads("--threads", args.threads.map_or(0, |t| t as usize))?;

@@ -86,13 +86,13 @@ pub fn check_threads(flag: &str, threads: usize) -> CliResult<usize> {
     }
 }
 
-/// Half of this machine's memory (`MemTotal` in `/proc/meminfo`), `None`
-/// where it cannot be read: the default bound on what one command holds.
-pub fn half_of_memory() -> Option<u64> {
+/// `1/share` of this machine's memory (`MemTotal` in `/proc/meminfo`),
+/// `None` where it cannot be read: a default bound on what one command holds.
+pub fn memory_fraction(share: u64) -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024 / 2)
+    Some(kib * 1024 / share.max(1))
 }
 
 /// The deformer of `mesh` (its projection pose, its blend shapes) and its

@@ -157,6 +157,8 @@ pub fn run(args: &Args) -> CliResult {
     // A zero limit would refuse every request while the server looks healthy.
     for (flag, x) in [
         ("--max-solves", args.max_solves as u64),
+        ("--cache-bytes", args.cache_bytes),
+        ("--max-connections", args.max_connections as u64),
         ("--body-limit", args.body_limit),
         ("--max-batch-bytes", args.max_batch_bytes),
         ("--max-batch-memory", args.max_batch_memory),
