@@ -139,14 +139,17 @@ fn bench_refuses_repeated_meshes_a_foreign_growth_mesh_and_bad_export_paths_up_f
     // The manifest cannot be written (a directory holds its name): the run
     // fails and removes the mesh files it wrote, so no export is left
     // without its manifest.
+    let export_to = |to: &std::path::Path| {
+        let all: Vec<&str> = quick
+            .iter()
+            .copied()
+            .chain(["--meshes", "hand_1k4", "--no-growth", "--export", to.to_str().unwrap()])
+            .collect();
+        curvenet(&all)
+    };
     let export = dir.join("export");
     std::fs::create_dir_all(export.join("manifest.json")).unwrap();
-    let all: Vec<&str> = quick
-        .iter()
-        .copied()
-        .chain(["--meshes", "hand_1k4", "--no-growth", "--export", export.to_str().unwrap()])
-        .collect();
-    let out = curvenet(&all);
+    let out = export_to(&export);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     let left: Vec<String> =
         std::fs::read_dir(&export).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
@@ -154,17 +157,12 @@ fn bench_refuses_repeated_meshes_a_foreign_growth_mesh_and_bad_export_paths_up_f
     // A failed export over an earlier one leaves no manifest naming files
     // it overwrote or removed (second review).
     let again = dir.join("again");
-    let all: Vec<&str> = quick
-        .iter()
-        .copied()
-        .chain(["--meshes", "hand_1k4", "--no-growth", "--export", again.to_str().unwrap()])
-        .collect();
-    let out = curvenet(&all);
+    let out = export_to(&again);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(again.join("manifest.json").is_file());
     std::fs::remove_file(again.join("hand_1k4.x3.f64")).unwrap();
     std::fs::create_dir(again.join("hand_1k4.x3.f64")).unwrap();
-    let out = curvenet(&all);
+    let out = export_to(&again);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(!again.join("manifest.json").exists(), "a failed export left the earlier manifest");
     std::fs::remove_dir_all(&dir).unwrap();
