@@ -559,14 +559,14 @@ fn read_chunk(stage: &Stage, jobs: &[MeshJob], times: &[f64]) -> CliResult<Vec<F
                     for net in &job.nets {
                         let pool = stage.posed_pool(net, Some(t)).map_err(at)?;
                         if let Some(pool) = &pool {
-                            check_finite(pool, t, &net.path, "primvars:curvenet:cv", "control point")?;
+                            check_frame_points(pool, t, &net.path, "primvars:curvenet:cv", "control point")?;
                         }
                         posed.push(pool);
                     }
                     let rest = match job.reads_rest {
                         true => {
                             let rest = stage.rest_points(&job.mesh, Some(t)).map_err(at)?;
-                            check_finite(&rest, t, &job.mesh.path, "points", "point")?;
+                            check_frame_points(&rest, t, &job.mesh.path, "points", "point")?;
                             Some(rest)
                         }
                         false => None,
@@ -601,7 +601,7 @@ const POINTS_SHARE_OF_MEMORY: u64 = 8;
 /// Checks a frame's points as the service does (`MAX_COORDINATE`): finite,
 /// and at most 1e15 in magnitude (an f32 output spaces its values 1e8 apart
 /// there, so larger values are no longer geometry).
-fn check_finite(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: &str) -> CliResult {
+fn check_frame_points(points: &[[f64; 3]], t: f64, prim: &str, attribute: &str, what: &str) -> CliResult {
     let limit = curvenet_server::MAX_COORDINATE;
     let non_finite: Vec<usize> = (0..points.len()).filter(|&i| !points[i].iter().all(|x| x.is_finite())).collect();
     let in_all = |bad: &[usize], kind: &str| match bad.len() {

@@ -384,19 +384,7 @@ pub fn run(args: &Args) -> CliResult {
         )));
     }
     if let Some(export) = &args.export {
-        if export.exists() && !export.is_dir() {
-            return Err(CliError::Input(format!("bench --export {}: exists and is not a directory", export.display())));
-        }
-        std::fs::create_dir_all(export)
-            .map_err(|source| CliError::Io { context: format!("bench --export {}", export.display()), source })?;
-        // The manifest is written last, so a directory holding one holds a
-        // whole export: an earlier export's manifest goes before its files
-        // are overwritten (a failed run would leave it naming them).
-        let manifest = export.join("manifest.json");
-        if manifest.is_file() {
-            std::fs::remove_file(&manifest)
-                .map_err(|source| CliError::Io { context: format!("bench --export {}", manifest.display()), source })?;
-        }
+        export::prepare(export)?;
     }
     let files = args.meshes.iter().map(|m| fixture_file(dir, m)).collect::<CliResult<Vec<_>>>()?;
     let threads = super::check_threads("--threads", args.threads.map_or(0, |t| t as usize))?;
@@ -737,7 +725,7 @@ fn bench_mesh(
     let solve_cpu = deform_t.cpu();
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
     let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);
-    let group16 = batch.batch.iter().find(|r| r.k == 16).map(|r| r.per_frame_over_reference);
+    let group16 = batch.over_reference_at(16);
     let targets = targets_for(name).zip(throughput_targets_for(name)).map(|((s, st, b), (f, fps))| Targets {
         solve_ms: s,
         solve_stretch_ms: st,
@@ -1304,7 +1292,7 @@ fn text_report(r: &Report) -> String {
                 t.binding_ms,
                 met(t.binding_met)
             );
-            let group16 = m.batch.batch.iter().find(|r| r.k == 16).map(|r| r.per_frame_over_reference);
+            let group16 = m.batch.over_reference_at(16);
             let _ = writeln!(
                 s,
                 "{:<w$} issue #19: frame {:.2} ms ≤ {} ms: {}; best group {:.0} frames/s ≥ {}: {}; group of 16 {} ≤ {}× the copy reference: {}",

@@ -63,6 +63,13 @@ pub(super) struct BatchFigures {
     pub rest_batch: BatchRow,
 }
 
+impl BatchFigures {
+    /// `per_frame_over_reference` of groups of `k`, if `k` was timed.
+    pub fn over_reference_at(&self, k: usize) -> Option<f64> {
+        self.batch.iter().find(|r| r.k == k).map(|r| r.per_frame_over_reference)
+    }
+}
+
 /// Measures every K of [`BATCH_KS`] on the bench's poses (`inputs`, cycled).
 /// `rest`: the rest pose of the rest-pose row.
 pub(super) fn bench_batches(

@@ -72,8 +72,24 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> CliError + '_ {
     move |source| CliError::Io { context: format!("bench --export: {}", path.display()), source }
 }
 
-/// Writes `mesh`'s files into `dir` (created if missing) for the frame
-/// posed as `posed`.
+/// Makes `dir` ready before any mesh is benched: refused when it is a
+/// file, created when missing, and an earlier export's manifest removed.
+/// The manifest is written last, so a directory holding one holds a whole
+/// export; an earlier one would name files a failed run overwrote or removed.
+pub(super) fn prepare(dir: &Path) -> CliResult {
+    if dir.exists() && !dir.is_dir() {
+        return Err(CliError::Input(format!("bench --export {}: exists and is not a directory", dir.display())));
+    }
+    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let manifest = dir.join("manifest.json");
+    if manifest.is_file() {
+        std::fs::remove_file(&manifest).map_err(io_err(&manifest))?;
+    }
+    Ok(())
+}
+
+/// Writes `mesh`'s files into `dir` ([`prepare`]d) for the frame posed as
+/// `posed`.
 pub(super) fn export_mesh(
     dir: &Path,
     mesh: &str,
@@ -82,7 +98,6 @@ pub(super) fn export_mesh(
     frame: ExportedFrame,
     written: &mut Vec<PathBuf>,
 ) -> CliResult<Exported> {
-    std::fs::create_dir_all(dir).map_err(io_err(dir))?;
     let a = binding.system_matrix();
     let sys = binding.frame_system(posed).map_err(|source| CliError::Core {
         context: format!("bench --export {mesh}, frame {}", frame.index),
