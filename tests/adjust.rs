@@ -1,8 +1,8 @@
 //! The Curvenet Adjuster (Elemental 2023) on the hand fixtures: knot
 //! orientations that follow the surface, and adjustments in them.
 
-use curvenet_core::adjust::fit_rotation;
-use curvenet_core::closest_point::ClosestPointBvh;
+use curvenet_core::ClosestPointBvh;
+use curvenet_core::fit_rotation;
 use curvenet_core::{Adjustment, Error, Frame, Mat3, Rotate};
 use curvenet_e2e::{Bound, bind_fixture, max_distance};
 use glam::{DMat3, DVec3};

@@ -3,7 +3,7 @@
 //! and after a rigid motion of the whole curvenet the sculpt moves with the surface.
 
 use curvenet_core::Frame;
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+use curvenet_core::{BlendShape, BlendShapes};
 use curvenet_e2e::{Bound, bind_fixture, max_distance, repo_root};
 
 fn shapes(b: &Bound) -> BlendShapes {

@@ -96,7 +96,7 @@ impl Bound {
     }
 
     pub fn diagonal(&self) -> f64 {
-        curvenet_core::mesh::bounding_box_diagonal(&self.mesh.projection_points)
+        curvenet_core::bounding_box_diagonal(&self.mesh.projection_points)
     }
 }
 

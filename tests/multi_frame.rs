@@ -6,7 +6,7 @@
 //! Adjustments, gradients asked for or not), whatever the group size; a bad
 //! frame is named by its index.
 
-use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::BlendShape;
 use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Error, Frame, FrameOut, Rotate};
 use curvenet_e2e::{bind_fixture, curvenet_inputs, deformer_input};
 
@@ -185,11 +185,11 @@ fn check(rel: &str) {
     assert!(own_rest.len() >= 3 && !plain.is_empty(), "{own_rest:?} {plain:?}");
     for k in [2, 4, 8, 16, 32] {
         check_groups(rel, &deformer, &frames, &single, &own_rest, k);
-        let before = curvenet_core::counters::lane_row_groups();
+        let before = curvenet_core::lane_row_groups();
         check_groups(rel, &deformer, &frames, &single, &plain, k);
         // Plain groups of 2, 4, 8 and 16 made their rows lane by lane (and
         // still gave the single frames' bits); other sizes, frame by frame.
-        let made = curvenet_core::counters::lane_row_groups() - before;
+        let made = curvenet_core::lane_row_groups() - before;
         if k != 32 {
             assert!(made >= 2, "{rel}: groups of {k} made their rows lane by lane {made} times");
         }
@@ -248,7 +248,7 @@ fn name_seed(rel: &str) -> u64 {
 /// does, naming it.
 #[test]
 fn random_poses_in_groups_match_single_frames_on_every_corpus_stage() {
-    use curvenet_core::draft::SplitMix64;
+    use curvenet_core::SplitMix64;
     let base = std::env::var("CURVENET_GROUP_SEED").ok().and_then(|s| s.parse::<u64>().ok()).unwrap_or(0x19_5eed);
     let mut stages: Vec<String> = std::fs::read_dir(curvenet_e2e::fixtures_dir().join("corpus"))
         .unwrap()
@@ -325,7 +325,7 @@ fn random_poses_in_groups_match_single_frames_on_every_corpus_stage() {
                 })
                 .collect();
             for k in [2usize, 4, 8, 16] {
-                let before = curvenet_core::counters::lane_row_groups();
+                let before = curvenet_core::lane_row_groups();
                 let picked: Vec<usize> = (0..frames.len()).cycle().skip(k / 2).take(2 * k).collect();
                 let group: Vec<Frame<'_>> = picked.iter().map(|&i| frames[i]).collect();
                 let mut points = vec![vec![[f64::NAN; 3]; n]; picked.len()];
@@ -344,7 +344,7 @@ fn random_poses_in_groups_match_single_frames_on_every_corpus_stage() {
                         relative(points[j].as_flattened(), single[i].as_flattened())
                     );
                 }
-                let made = curvenet_core::counters::lane_row_groups() - before;
+                let made = curvenet_core::lane_row_groups() - before;
                 assert!(
                     !lanes || made >= 2,
                     "{rel}: {what} in groups of {k} made their rows lane by lane {made} times"

@@ -3,7 +3,7 @@
 //! this test.
 
 use curvenet_core::Frame;
-use curvenet_core::counters::{cut_mesh_builds, numeric_factorizations};
+use curvenet_core::{cut_mesh_builds, numeric_factorizations};
 use curvenet_e2e::bind_fixture;
 
 #[test]

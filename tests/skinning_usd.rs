@@ -3,12 +3,12 @@
 //! skinning of the same stages (`UsdSkel.BakeSkinning`, written by
 //! fixtures/generate.py into usdskel.usda); and its curvenets spline-skinned.
 
-use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
-use curvenet_core::skinning::{
-    self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, JunctionKind, Mat4, Skeleton, Skin, SkinningMethod,
-    SplineSkinning, SurfaceWeights,
-};
+use curvenet_core::{BlendShape, BlendShapes};
 use curvenet_core::{ClosestPointBvh, PolyMesh};
+use curvenet_core::{
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, JunctionKind, MAT4_IDENTITY, Mat4, Skeleton, Skin,
+    SkinningMethod, SplineSkinning, SurfaceWeights, transform_point,
+};
 use curvenet_e2e::{fixtures_dir, max_distance};
 use curvenet_schema::usd::{CurvenetSkinning, SkinRig, Stage};
 use curvenet_schema::{CurvenetData, MeshData};
@@ -70,15 +70,15 @@ impl Rigged {
                 })
                 .collect(),
         );
-        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&mesh.projection_points);
+        let diagonal = curvenet_core::bounding_box_diagonal(&mesh.projection_points);
         Self { stage, mesh, nets, rig, skeleton, skin, shapes, diagonal }
     }
 
     fn transforms(&self, t: f64) -> Vec<Mat4> {
         let local = self.stage.joint_local_transforms(&self.rig, Some(t)).unwrap();
-        let mut out = vec![skinning::IDENTITY; local.len()];
+        let mut out = vec![MAT4_IDENTITY; local.len()];
         self.skeleton.skinning_transforms(&local, &mut out).unwrap();
-        assert_eq!(self.stage.skel_to_mesh_transform(&self.rig, Some(t)).unwrap(), skinning::IDENTITY);
+        assert_eq!(self.stage.skel_to_mesh_transform(&self.rig, Some(t)).unwrap(), MAT4_IDENTITY);
         out
     }
 
@@ -112,7 +112,7 @@ fn the_reader_finds_the_rig_of_the_rigged_hand() {
     assert_eq!(modes[2], CurvenetSkinning::None);
     // Frame 1 is the bind pose: every skinning transform is the identity.
     for m in r.transforms(1.0) {
-        let err = m.iter().zip(&skinning::IDENTITY).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let err = m.iter().zip(&MAT4_IDENTITY).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         assert!(err < 1e-12, "{m:?}");
     }
 }
@@ -191,10 +191,10 @@ fn spline_skinning_of_the_rigged_curvenets_reproduces_identity_and_rigid_motions
     for (path, sk) in spline_skinnings(&r) {
         let net = r.nets.iter().find(|n| n.path == path).unwrap();
         let mut out = vec![[0.0; 3]; net.pool.len()];
-        sk.pose(&vec![skinning::IDENTITY; r.rig.joints.len()], &mut out).unwrap();
+        sk.pose(&vec![MAT4_IDENTITY; r.rig.joints.len()], &mut out).unwrap();
         let identity = max_distance(&out, &net.pool);
         sk.pose(&vec![rigid; r.rig.joints.len()], &mut out).unwrap();
-        let want: Vec<[f64; 3]> = net.pool.iter().map(|p| skinning::transform_point(&rigid, *p)).collect();
+        let want: Vec<[f64; 3]> = net.pool.iter().map(|p| transform_point(&rigid, *p)).collect();
         let moved = max_distance(&out, &want);
         eprintln!(
             "{path}: identity transforms reproduce the pool to {:.1e}, one rigid transform to {:.1e} (x diagonal)",

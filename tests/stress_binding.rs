@@ -16,10 +16,10 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use curvenet_core::draft::{DraftOptions, Jitter, SplitMix64, draft};
 use curvenet_core::{
     CurvenetInput, CurvenetLayout, Deformer, DeformerInput, Frame, MeshInput, PolyMesh, SamplingOptions,
 };
+use curvenet_core::{DraftOptions, Jitter, SplitMix64, draft};
 use curvenet_e2e::{fixtures_dir, max_distance, projected_crossings};
 use curvenet_schema::usd::Stage;
 use rayon::prelude::*;
@@ -67,7 +67,7 @@ enum Outcome {
 /// (≤ 1e-9 × diagonal) and move it rigidly with a rigid motion of the
 /// curvenet (≤ 1e-6 × diagonal).
 fn frames_check(b: &Deformer, pool: &[[f64; 3]], points: &[[f64; 3]]) -> Outcome {
-    let diag = curvenet_core::mesh::bounding_box_diagonal(points);
+    let diag = curvenet_core::bounding_box_diagonal(points);
     let (c, s) = (0.6f64.cos(), 0.6f64.sin());
     // A rotation of 0.6 rad about (1, 2, 2)/3 and a shift.
     let (x, y, z) = (1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0);

@@ -34,15 +34,51 @@ pub mod skinning;
 pub mod solve;
 pub mod sparse;
 
-pub use adjust::{Adjustment, Rotate};
-pub use binding::{BindOptions, BindWarning, Binding};
-pub use cancel::Cancel;
-pub use closest_point::{ClosestPointBvh, Hit};
-pub use curvenet::{Curvenet, CurvenetLayout, Mat3, SamplingOptions, Side};
+// The curated API: everything code outside core (schema, server, the
+// workspace tests) may name is re-exported here, grouped by concept;
+// `scripts/check-imports` fails when code outside core reaches past it.
+// The modules stay `pub` for core's own integration tests (core/tests).
+
+// Binding (precompute) and the frame solve (runtime).
+pub use binding::cut::{
+    CROSSING as CUT_CROSSING, CutOptions, DEFAULT_MAX_PROJECTION_DISTANCE, MESH_VERTEX as CUT_MESH_VERTEX,
+    SAMPLE as CUT_SAMPLE,
+};
+pub use binding::{BindOptions, BindStats, BindTimings, BindWarning, Binding, Surface};
 pub use deformer::{
     BatchError, BlendShapeMode, CageInput, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
     DeformerOptions, FlexibleStats, Frame, FrameOut, MAX_BATCH_FRAMES, MeshInput, Rig,
 };
-pub use error::{Error, Result};
-pub use mesh::PolyMesh;
 pub use solve::{FrameInput, Workspace};
+
+// Inputs: meshes, curvenets, blend shapes, animation controls.
+pub use adjust::{Adjustment, Rotate, fit_rotation, knot_tangents};
+pub use blend_shapes::{BlendShape, BlendShapes};
+pub use curvenet::{CurveEnd, Curvenet, CurvenetLayout, Mat3, SamplingOptions, ScaledFrame, Side};
+pub use halfedge::INVALID as INVALID_INDEX;
+pub use mesh::{PolyMesh, bounding_box_diagonal};
+
+// Rig layers underneath: UsdSkel and spline skinning, coupled cages.
+pub use cage::{CageError, CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
+pub use skinning::{
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, IDENTITY as MAT4_IDENTITY, Influences, JunctionKind, Mat4, Skeleton,
+    Skin, SkinningMethod, SplineSkinning, SplineSkinningOptions, SurfaceWeights, check_affine, inverse as mat4_inverse,
+    mul as mat4_mul, skin_points, transform_point,
+};
+
+// Errors, cancellation, geometry queries.
+pub use cancel::Cancel;
+pub use closest_point::{ClosestPointBvh, Hit};
+pub use error::{Error, Result, SampleRef, SegmentRef};
+
+// Drafting curvenets on a bare mesh (`curvenet draft`, the stress tests).
+pub use draft::{Draft, DraftError, DraftOptions, Jitter, SplitMix64, draft};
+
+// Diagnostics for `curvenet bench` and `curvenet inspect`: the solver's
+// stages one by one, the vector unit, counters of rebuilds.
+pub use cholesky::{Cholesky, Ordering as FillOrdering, SymmetricTriplets};
+#[cfg(feature = "counters")]
+pub use counters::{cut_mesh_builds, lane_row_groups, numeric_factorizations};
+pub use curvenet::{constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
+pub use ids::Unknown;
+pub use simd::Simd;

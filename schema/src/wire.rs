@@ -220,7 +220,7 @@ impl BindingRequest {
     /// rigs it: `curvenet:skinningMethod` overrides UsdSkel's token.
     pub fn with_skin(mut self, rig: &crate::usd::SkinRig, curvenets: Vec<CurvenetSkinSpec>) -> Self {
         use crate::usd::CurvenetSkinningMethod as M;
-        use curvenet_core::skinning::SkinningMethod as S;
+        use curvenet_core::SkinningMethod as S;
         let method = match (rig.curvenet_method, rig.method) {
             (Some(M::ClassicLinear), _) | (None, S::ClassicLinear) => SkinMethod::ClassicLinear,
             (Some(M::DualQuaternion), _) | (None, S::DualQuaternion) => SkinMethod::DualQuaternion,
@@ -406,10 +406,10 @@ impl CurvenetSpec {
     }
 }
 
-impl From<&curvenet_core::binding::BindStats> for BindingStats {
+impl From<&curvenet_core::BindStats> for BindingStats {
     /// The one conversion from core's counts to their wire names (the
     /// service's binding response and `curvenet inspect --bind` both use it).
-    fn from(s: &curvenet_core::binding::BindStats) -> Self {
+    fn from(s: &curvenet_core::BindStats) -> Self {
         BindingStats {
             mesh_vertices: s.mesh_vertices,
             mesh_faces: s.mesh_faces,
@@ -434,7 +434,7 @@ impl From<&curvenet_core::binding::BindStats> for BindingStats {
 
 impl BindingTimings {
     /// Core's stage times with the analysis and wall time measured around them.
-    pub fn new(analysis_ms: f64, stages: &curvenet_core::binding::BindTimings, total_ms: f64) -> Self {
+    pub fn new(analysis_ms: f64, stages: &curvenet_core::BindTimings, total_ms: f64) -> Self {
         BindingTimings {
             analysis_ms,
             surface_ms: stages.surface_ms,
@@ -490,8 +490,8 @@ pub struct SegmentId {
     pub segment: u32,
 }
 
-impl From<curvenet_core::error::SegmentRef> for SegmentId {
-    fn from(s: curvenet_core::error::SegmentRef) -> Self {
+impl From<curvenet_core::SegmentRef> for SegmentId {
+    fn from(s: curvenet_core::SegmentRef) -> Self {
         SegmentId { curvenet: s.curvenet, spline: s.spline, segment: s.segment }
     }
 }

@@ -105,7 +105,7 @@ fn hand_caged_reads_as_the_manifest_says() {
     assert_eq!(rig.joints.len(), 8);
     assert_eq!(rig.curvenet_method, Some(CurvenetSkinningMethod::CentersOfRotation));
     assert_eq!(stage.curvenet_skinning_method(mesh).unwrap(), Some(CurvenetSkinningMethod::CentersOfRotation));
-    assert_eq!(rig.method, curvenet_core::skinning::SkinningMethod::ClassicLinear, "UsdSkel's token stays");
+    assert_eq!(rig.method, curvenet_core::SkinningMethod::ClassicLinear, "UsdSkel's token stays");
     assert_eq!(rig.time_samples, times);
 }
 

@@ -50,7 +50,7 @@ fn main() -> ExitCode {
     if !serves {
         exit_quietly_on_closed_pipe();
     }
-    if let Some(problem) = curvenet_core::simd::Simd::env_problem() {
+    if let Some(problem) = curvenet_core::Simd::env_problem() {
         eprintln!("curvenet: warning: {problem}");
     }
     let result = match cli.command {

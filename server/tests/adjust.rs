@@ -86,7 +86,7 @@ fn the_bake_of_the_adjusted_shot_read_back_by_usd_core_is_the_in_process_solve()
     let input = repo().join(ADJUSTED);
     let reference = Reference::new(&input);
     assert_eq!(reference.adjustments[0].len(), 4, "the shot adjusts four knots");
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&reference.mesh.projection_points);
+    let diagonal = curvenet_core::bounding_box_diagonal(&reference.mesh.projection_points);
     // The adjustments are identity at frame 1 and largest at frame 12.
     let first = reference.deform(1.0, true);
     assert_eq!(first, reference.deform(1.0, false), "frame 1 adjusts nothing");

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use curvenet_core::blend_shapes::BlendShape;
+use curvenet_core::BlendShape;
 use curvenet_core::{CurvenetInput, Deformer, DeformerInput, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
@@ -137,7 +137,7 @@ fn bakes_the_shot_to_usda_and_usdc_matching_an_in_process_solve() {
     assert_eq!(mesh_a.face_vertex_indices, reference.mesh.face_vertex_indices);
     assert_eq!(mesh_a.curvenets, reference.mesh.curvenets);
     assert_eq!(composed_a.curvenet("/Hand/Curvenet").unwrap(), reference.nets[0]);
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&reference.mesh.projection_points);
+    let diagonal = curvenet_core::bounding_box_diagonal(&reference.mesh.projection_points);
     let mut moved = 0.0f64;
     for t in [1.0, 7.0, 13.0, 24.0] {
         let want = reference.deform(t);
@@ -436,7 +436,7 @@ fn a_skinned_rest_pose_with_a_tracking_curvenet_bakes_to_the_rest_pose() {
     let input = Stage::open(&shot).unwrap();
     let input_mesh = input.deformed_meshes().unwrap().remove(0);
     let reference = Reference::new(&shot);
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&input_mesh.projection_points);
+    let diagonal = curvenet_core::bounding_box_diagonal(&input_mesh.projection_points);
     let mut largest_motion = 0.0f64;
     for t in [1.0, 6.0, 12.0] {
         let rest = input.rest_points(&input_mesh, Some(t)).unwrap();
@@ -485,7 +485,7 @@ fn usd_core_reads_the_bake_composed_over_its_input_as_the_in_process_solve() {
     for shot in ["fixtures/shots/hand_wave/shot.usda", "fixtures/shots/hand_skinned/shot.usda"] {
         let input = repo().join(shot);
         let reference = Reference::new(&input);
-        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&reference.mesh.projection_points);
+        let diagonal = curvenet_core::bounding_box_diagonal(&reference.mesh.projection_points);
         for ext in ["usda", "usdc"] {
             let out = dir.join(format!("bake.{ext}"));
             let run = bake(shot, &out, &["--frames", "1-12", "--quiet"]);

@@ -7,9 +7,9 @@
 //! stage's plain data and fed to the plain curvenet solve as the frame's
 //! rest pose.
 
-use curvenet_core::cage::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
-use curvenet_core::skinning::{self, Influences, Mat4, Skeleton, Skin, SkinningMethod};
+use curvenet_core::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
 use curvenet_core::{CurvenetInput, Deformer, Frame, PolyMesh};
+use curvenet_core::{Influences, MAT4_IDENTITY, Mat4, Skeleton, Skin, SkinningMethod};
 use curvenet_schema::usd::{CurvenetSkinningMethod, Stage, read_points_overrides};
 
 mod common;
@@ -63,14 +63,14 @@ impl Reference {
         let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
         let inputs: Vec<CurvenetInput> = nets.iter().map(curvenet_schema::CurvenetData::input).collect();
         let deformer = Deformer::new(&curvenet_schema::deformer_input(&mesh, &inputs)).unwrap();
-        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&mesh.projection_points);
+        let diagonal = curvenet_core::bounding_box_diagonal(&mesh.projection_points);
         Self { stage, cage, coupled, skel, deformer, diagonal }
     }
 
     fn transforms(&self, t: f64) -> Option<Vec<Mat4>> {
         let (rig, skeleton) = self.skel.as_ref()?;
         let local = self.stage.joint_local_transforms(rig, Some(t)).unwrap();
-        let mut out = vec![skinning::IDENTITY; local.len()];
+        let mut out = vec![MAT4_IDENTITY; local.len()];
         skeleton.skinning_transforms(&local, &mut out).unwrap();
         Some(out)
     }

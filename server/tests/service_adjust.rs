@@ -9,7 +9,7 @@ use std::sync::OnceLock;
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{Request, StatusCode, header};
-use curvenet_core::adjust::knot_tangents;
+use curvenet_core::knot_tangents;
 use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, Rotate};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameResponse};

@@ -9,9 +9,9 @@
 
 mod common;
 
-use curvenet_core::deformer::{CageInput, Rig};
-use curvenet_core::skinning::{Influences, Mat4, Skeleton, Skin, SkinningMethod};
+use curvenet_core::{CageInput, Rig};
 use curvenet_core::{CurvenetInput, Deformer, DeformerInput, Frame};
+use curvenet_core::{Influences, Mat4, Skeleton, Skin, SkinningMethod};
 use curvenet_schema::usd::{CurvenetSkinning, CurvenetSkinningMethod, Stage, read_points_overrides};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, CageSpec, FrameBatchResponse, FrameRequest, FrameResponse, SkeletonSpec,
@@ -83,7 +83,7 @@ impl Shot {
             }),
         });
         request.cage = Some(CageSpec { points: cage.rest_points.clone(), triangles: cage.triangles.clone() });
-        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&mesh.projection_points);
+        let diagonal = curvenet_core::bounding_box_diagonal(&mesh.projection_points);
         Self { stage, mesh, nets, cage, rig, skeleton, request, diagonal }
     }
 

@@ -6,7 +6,7 @@
 use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{Request, StatusCode, header};
-use curvenet_core::skinning::{Mat4, Skeleton, SkinningMethod};
+use curvenet_core::{Mat4, Skeleton, SkinningMethod};
 use curvenet_schema::usd::{CurvenetSkinning, Stage, read_points_overrides};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, BlendShapeMode, CurvenetSkinSpec, FrameRequest, FrameResponse, SkinMethod,
@@ -124,7 +124,7 @@ async fn joint_transforms_over_http_answer_the_bake_of_the_rigged_shot() {
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let got: Vec<[f64; 3]> =
         serde_json::from_slice::<FrameResponse>(&body).unwrap().points.iter().map(|p| p.map(f64::from)).collect();
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&shot.mesh.projection_points);
+    let diagonal = curvenet_core::bounding_box_diagonal(&shot.mesh.projection_points);
     let err = max_dist(&got, &baked);
     let moved = max_dist(&baked, &shot.mesh.projection_points);
     eprintln!(

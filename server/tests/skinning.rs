@@ -3,10 +3,11 @@
 //! spline-skins its curvenets; the result equals usd-core's skinning fed to
 //! the existing curvenet solve with the spline-skinned pools.
 
-use curvenet_core::skinning::{
-    self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, SplineSkinning, SurfaceWeights,
-};
 use curvenet_core::{ClosestPointBvh, CurvenetInput, Deformer, DeformerInput, Frame, PolyMesh};
+use curvenet_core::{
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, MAT4_IDENTITY, Mat4, Skeleton, SplineSkinning,
+    SurfaceWeights, skin_points,
+};
 use curvenet_schema::usd::{CurvenetSkinning, Stage, read_points_overrides};
 use openusd::sdf::Value;
 
@@ -37,7 +38,7 @@ struct Reference {
     splines: Vec<Option<SplineSkinning>>,
     diagonal: f64,
     /// Blend shapes to add after the solve (`afterSolve`).
-    after: Option<curvenet_core::blend_shapes::BlendShapes>,
+    after: Option<curvenet_core::BlendShapes>,
 }
 
 impl Reference {
@@ -78,13 +79,13 @@ impl Reference {
                 }
             })
             .collect();
-        let diagonal = curvenet_core::mesh::bounding_box_diagonal(&mesh.projection_points);
+        let diagonal = curvenet_core::bounding_box_diagonal(&mesh.projection_points);
         Self { stage, deformer, rig, skeleton, splines, diagonal, after: None }
     }
 
     fn transforms(&self, t: f64) -> Vec<Mat4> {
         let local = self.stage.joint_local_transforms(&self.rig, Some(t)).unwrap();
-        let mut out = vec![skinning::IDENTITY; local.len()];
+        let mut out = vec![MAT4_IDENTITY; local.len()];
         self.skeleton.skinning_transforms(&local, &mut out).unwrap();
         out
     }
@@ -126,15 +127,14 @@ impl Reference {
         inf.renormalize(1e-4);
         let points = self.stage.rest_points(&mesh, Some(t)).unwrap();
         let mut out = vec![[0.0; 3]; n];
-        skinning::skin_points(rig.method, &points, &inf, &rig.geom_bind_transform, &self.transforms(t), &mut out)
-            .unwrap();
+        skin_points(rig.method, &points, &inf, &rig.geom_bind_transform, &self.transforms(t), &mut out).unwrap();
         out
     }
 }
 
 #[test]
 fn blend_shapes_asked_after_the_solve_are_added_in_the_deformed_frames() {
-    use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
+    use curvenet_core::{BlendShape, BlendShapes};
     let dir = common::temp_dir("skinning", "after");
     let layer = dir.join("after.usda");
     std::fs::write(

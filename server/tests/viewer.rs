@@ -10,7 +10,7 @@ use axum::Router;
 use axum::body::{Body, Bytes};
 use axum::http::{HeaderMap, Request, StatusCode, header};
 use curvenet_core::PolyMesh;
-use curvenet_core::binding::Surface;
+use curvenet_core::Surface;
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
@@ -391,8 +391,8 @@ use common::Served;
 /// from the stage's own data.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_opened_caged_stage_draws_its_posed_cage_and_bakes_alike() {
-    use curvenet_core::cage::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
-    use curvenet_core::skinning::{self, Influences, Skeleton, Skin, SkinningMethod};
+    use curvenet_core::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
+    use curvenet_core::{Influences, MAT4_IDENTITY, Skeleton, Skin, SkinningMethod};
     const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
     let stage = Stage::open(common::repo().join(CAGED)).unwrap();
     let mesh = stage.deformed_meshes().unwrap().remove(0);
@@ -462,9 +462,9 @@ async fn an_opened_caged_stage_draws_its_posed_cage_and_bakes_alike() {
         assert!(d <= 1e-6 * diagonal, "frame {t}: the viewer is {d} off the bake");
         // The posed cage of the coupled rig at this frame, from the stage's data.
         let local = stage.joint_local_transforms(&rig, Some(t)).unwrap();
-        let mut transforms = vec![skinning::IDENTITY; local.len()];
+        let mut transforms = vec![MAT4_IDENTITY; local.len()];
         skeleton.skinning_transforms(&local, &mut transforms).unwrap();
-        assert_eq!(stage.skel_to_mesh_transform(&rig, Some(t)).unwrap(), skinning::IDENTITY);
+        assert_eq!(stage.skel_to_mesh_transform(&rig, Some(t)).unwrap(), MAT4_IDENTITY);
         let edits = cage.frame(Some(t));
         let mut ws = CoupledWorkspace::default();
         let mut rest = vec![[0.0; 3]; n];

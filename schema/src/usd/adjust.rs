@@ -2,7 +2,7 @@
 //! adjustment") and turning them into the core's plain
 //! [`curvenet_core::Adjustment`]s for a frame.
 
-use curvenet_core::adjust::{Adjustment, Rotate, knot_tangents};
+use curvenet_core::{Adjustment, Rotate, knot_tangents};
 
 use super::error::UsdError;
 use super::read::{Stage, at};

@@ -12,7 +12,7 @@ use super::error::UsdError;
 use super::read::{Stage, at};
 use super::value;
 use crate::data::{CurvenetData, MeshData};
-use curvenet_core::skinning::{IDENTITY, Mat4, SkinningMethod};
+use curvenet_core::{MAT4_IDENTITY, Mat4, SkinningMethod};
 
 type Result<T> = std::result::Result<T, UsdError>;
 
@@ -277,7 +277,7 @@ impl Stage {
             }
         }
         let geom_bind_transform = match self.static_value(&prim, GEOM_BIND)? {
-            None => IDENTITY,
+            None => MAT4_IDENTITY,
             Some(Value::Matrix4d(m)) => m.0,
             Some(v) => {
                 return Err(UsdError::contract(
@@ -287,7 +287,7 @@ impl Stage {
                 ));
             }
         };
-        curvenet_core::skinning::check_affine(&geom_bind_transform, "geomBindTransform", 0)
+        curvenet_core::check_affine(&geom_bind_transform, "geomBindTransform", 0)
             .map_err(|e| UsdError::contract(&mesh.path, GEOM_BIND, e.to_string()))?;
         let mut method = SkinningMethod::ClassicLinear;
         for name in METHODS {
@@ -367,7 +367,7 @@ impl Stage {
     /// vectors; quaternions normalised) for the joints it animates, the
     /// Skeleton's `restTransforms` for the others.
     pub fn joint_local_transforms(&self, rig: &SkinRig, time: Option<f64>) -> Result<Vec<Mat4>> {
-        let mut local = rig.rest_transforms.clone().unwrap_or_else(|| vec![IDENTITY; rig.joints.len()]);
+        let mut local = rig.rest_transforms.clone().unwrap_or_else(|| vec![MAT4_IDENTITY; rig.joints.len()]);
         let Some(anim) = &rig.animation else { return Ok(local) };
         let prim = self.prim(anim)?;
         let n = rig.anim_joints.len();
@@ -429,12 +429,12 @@ impl Stage {
         };
         let (skel, mesh) = (world(&rig.skeleton)?, world(&rig.mesh)?);
         if skel == mesh {
-            return Ok(IDENTITY);
+            return Ok(MAT4_IDENTITY);
         }
-        let inv = curvenet_core::skinning::inverse(&mesh).ok_or_else(|| {
+        let inv = curvenet_core::mat4_inverse(&mesh).ok_or_else(|| {
             UsdError::contract(&rig.mesh, "xformOpOrder", "the mesh's local-to-world transform is singular")
         })?;
-        Ok(curvenet_core::skinning::mul(&skel, &inv))
+        Ok(curvenet_core::mat4_mul(&skel, &inv))
     }
 
     /// How `curvenet` is spline-skinned: `curvenet:skinning` (`weights`,
@@ -638,7 +638,7 @@ fn trs(t: [f64; 3], q: [f64; 4], s: [f64; 3]) -> Mat4 {
         [2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)],
         [2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)],
     ];
-    let mut m = IDENTITY;
+    let mut m = MAT4_IDENTITY;
     for row in 0..3 {
         for c in 0..3 {
             m[4 * row + c] = s[row] * r[row][c];

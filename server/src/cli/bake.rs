@@ -40,7 +40,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use curvenet_core::skinning::Mat4;
+use curvenet_core::Mat4;
 use curvenet_core::{Adjustment, BlendShapeMode, Deformer, Frame, FrameOut};
 use curvenet_schema::usd::{BlendShapeOrder, LayerFormat, PrimPoints, Stage, WriteError, write_points_overrides};
 use curvenet_schema::{AdjustmentData, CageData, CurvenetData, MeshData};

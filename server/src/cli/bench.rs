@@ -94,8 +94,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use curvenet_core::curvenet::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, Frame, Mat3};
+use curvenet_core::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
@@ -396,7 +396,7 @@ pub fn run(args: &Args) -> CliResult {
     let growth_file = if grow { Some(fixture_file(dir, &growth_mesh)?) } else { None };
     let mut report = Report {
         threads,
-        simd: curvenet_core::simd::Simd::detect().name(),
+        simd: curvenet_core::Simd::detect().name(),
         repeats,
         frames,
         meshes: Vec::new(),
@@ -560,7 +560,7 @@ fn bench_corpus_mesh(
     }
     let deformer = bound.ok_or_else(|| CliError::Input("--repeats must be at least 1".into()))?;
     let points = &mesh.projection_points;
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
+    let diagonal = curvenet_core::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
     let pools: Vec<Vec<Vec<[f64; 3]>>> = (0..frames).map(|i| pose(&nets, i, frames)).collect();
     let mut out = vec![[0.0; 3]; deformer.n_vertices()];
     let frame_err = |i: usize| {
@@ -657,7 +657,7 @@ fn bench_mesh(
     let pools: Vec<Vec<Vec<[f64; 3]>>> = (0..frames).map(|i| pose(&nets, i, frames)).collect();
     let inputs: Vec<Vec<Option<&[[f64; 3]]>>> =
         pools.iter().map(|frame| frame.iter().map(|p| Some(p.as_slice())).collect()).collect();
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
+    let diagonal = curvenet_core::bounding_box_diagonal(points).max(f64::MIN_POSITIVE);
 
     // Frames, one after another through `Deformer::frame` (the first, untimed,
     // makes the workspace it then reuses). Right after each timed frame (so

@@ -9,7 +9,7 @@
 use std::path::{Component, Path, PathBuf};
 
 use curvenet_core::PolyMesh;
-use curvenet_core::draft::{Draft, DraftError, DraftOptions, Jitter, draft};
+use curvenet_core::{Draft, DraftError, DraftOptions, Jitter, draft};
 use curvenet_schema::usd::{CurvenetLayer, Stage, WriteError, write_curvenet_layer};
 use serde::Serialize;
 

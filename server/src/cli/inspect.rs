@@ -16,8 +16,8 @@
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-use curvenet_core::binding::surface::Surface;
-use curvenet_core::curvenet::CurveEnd;
+use curvenet_core::CurveEnd;
+use curvenet_core::Surface;
 use curvenet_core::{Curvenet, CurvenetLayout, PolyMesh, SamplingOptions};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingStats, BindingTimings};
@@ -470,7 +470,7 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
         faces: topo.n_faces(),
         face_sizes,
         mean_edge_length: topo.mean_edge_length(&m.projection_points),
-        bounding_box_diagonal: curvenet_core::mesh::bounding_box_diagonal(&m.projection_points),
+        bounding_box_diagonal: curvenet_core::bounding_box_diagonal(&m.projection_points),
         rest_pose_frames: m.rest_sample_times.len(),
         curvenets: m.curvenets.clone(),
         blend_shapes: m
@@ -494,12 +494,12 @@ fn mesh_report(stage: &Stage, m: &MeshData, time: Option<f64>, warnings: &mut Ve
 /// The cage of `m`, coupled as the bake couples it (`Deformer::new` does
 /// the same precomputation); `None` when the mesh has no `rel curvenet:cage`.
 fn cage_report(stage: &Stage, m: &MeshData, rig: Option<&super::rig::MeshRig>) -> CliResult<Option<CageReport>> {
-    use curvenet_core::cage::{CageRevApproximation, CoupledRig};
+    use curvenet_core::{CageRevApproximation, CoupledRig};
     let Some(cage) = stage.cage(m)? else { return Ok(None) };
     let start = std::time::Instant::now();
     let topo = PolyMesh::new(&m.face_vertex_counts, &m.face_vertex_indices, m.projection_points.len())
         .map_err(|source| CliError::Core { context: m.path.clone(), source })?;
-    let triangles = curvenet_core::cage::fan_triangles(&topo);
+    let triangles = curvenet_core::fan_triangles(&topo);
     let skinning = rig.map(|r| (&r.joints.skeleton, &r.skinning.skin));
     let coupled = CoupledRig::new(
         &cage.rest_points,
@@ -551,12 +551,12 @@ fn rig_report(
     rig: super::rig::MeshRig,
     time: Option<f64>,
 ) -> CliResult<RigReport> {
-    use curvenet_core::skinning::JunctionKind;
+    use curvenet_core::JunctionKind;
     let transforms = match time {
         Some(_) => Some(rig.joints.read_transforms(stage, time)?),
         None => None,
     };
-    let diagonal = curvenet_core::mesh::bounding_box_diagonal(&m.projection_points);
+    let diagonal = curvenet_core::bounding_box_diagonal(&m.projection_points);
     let mut curvenets = Vec::new();
     for ((net, nr), spline) in nets.iter().zip(&rig.nets).zip(&rig.skinning.curvenets) {
         let (Some(nr), Some(spline)) = (nr, spline) else {
@@ -640,7 +640,7 @@ fn rig_text(s: &mut String, r: &RigReport) {
         r.method,
         r.influences_per_point,
         if r.rigid { " (rigid: constant)" } else { "" },
-        if r.geom_bind_transform == curvenet_core::skinning::IDENTITY {
+        if r.geom_bind_transform == curvenet_core::MAT4_IDENTITY {
             "identity".to_string()
         } else {
             format!("{:?}", r.geom_bind_transform)

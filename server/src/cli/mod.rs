@@ -104,10 +104,10 @@ pub fn memory_fraction(share: u64) -> Option<u64> {
 pub fn deformer(
     mesh: &curvenet_schema::MeshData,
     nets: &[curvenet_schema::CurvenetData],
-    skinning: Option<curvenet_core::deformer::Rig>,
+    skinning: Option<curvenet_core::Rig>,
     cage: Option<&curvenet_schema::CageData>,
 ) -> CliResult<curvenet_core::Deformer> {
-    use curvenet_core::blend_shapes::BlendShape;
+    use curvenet_core::BlendShape;
     use curvenet_core::{CurvenetInput, Deformer, DeformerInput};
     use curvenet_schema::CurvenetData;
     let n = mesh.projection_points.len();
@@ -121,7 +121,7 @@ pub fn deformer(
         })
         .collect::<CliResult<Vec<_>>>()?;
     let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let cage = cage.map(|c| curvenet_core::deformer::CageInput { points: &c.rest_points, triangles: &c.triangles });
+    let cage = cage.map(|c| curvenet_core::CageInput { points: &c.rest_points, triangles: &c.triangles });
     let input = DeformerInput { blend_shapes, skinning, cage, ..curvenet_schema::deformer_input(mesh, &curvenets) };
     Deformer::new(&input).map_err(|e| match e {
         curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {

@@ -1,6 +1,6 @@
 //! The rig under the curvenets of one mesh, as the bake and `inspect` read
 //! it: the mesh's UsdSkel skin and the spline skinning of the curvenets that
-//! ask for it, built into a [`curvenet_core::deformer::Rig`] that
+//! ask for it, built into a [`curvenet_core::Rig`] that
 //! [`curvenet_core::Deformer`] runs per frame (the skinned rest pose, the
 //! spline-skinned posed pools).
 //!
@@ -8,10 +8,10 @@
 //! ([`JointReader::read_transforms`], on the stage's thread); everything else
 //! is core math inside `Deformer::frame`, safe to run on any thread.
 
-use curvenet_core::deformer::Rig;
-use curvenet_core::skinning::{
-    self, ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Mat4, Skeleton, Skin, SkinningMethod,
-    SplineSkinning, SplineSkinningOptions, SurfaceWeights,
+use curvenet_core::Rig;
+use curvenet_core::{
+    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, MAT4_IDENTITY, Mat4, Skeleton, Skin, SkinningMethod,
+    SplineSkinning, SplineSkinningOptions, SurfaceWeights, mat4_mul,
 };
 
 use curvenet_core::{ClosestPointBvh, PolyMesh};
@@ -154,12 +154,12 @@ impl JointReader {
     /// Reads the stage.
     pub fn read_transforms(&self, stage: &Stage, time: Option<f64>) -> CliResult<Vec<Mat4>> {
         let local = stage.joint_local_transforms(&self.rig, time)?;
-        let mut out = vec![skinning::IDENTITY; local.len()];
+        let mut out = vec![MAT4_IDENTITY; local.len()];
         self.skeleton.skinning_transforms(&local, &mut out).map_err(core(self.rig.skeleton.clone()))?;
         let to_mesh = stage.skel_to_mesh_transform(&self.rig, time)?;
-        if to_mesh != skinning::IDENTITY {
+        if to_mesh != MAT4_IDENTITY {
             for m in &mut out {
-                *m = skinning::mul(m, &to_mesh);
+                *m = mat4_mul(m, &to_mesh);
             }
         }
         Ok(out)

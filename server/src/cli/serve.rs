@@ -476,7 +476,7 @@ impl Caged {
         let skin = match stage.skin_rig(mesh)? {
             None => None,
             Some(rig) => {
-                let skeleton = curvenet_core::skinning::Skeleton::new(&rig.parents, &rig.bind_transforms)
+                let skeleton = curvenet_core::Skeleton::new(&rig.parents, &rig.bind_transforms)
                     .map_err(|source| CliError::Core { context: rig.skeleton.clone(), source })?;
                 let curvenets = nets
                     .iter()

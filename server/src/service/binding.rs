@@ -4,15 +4,15 @@
 //! analysis, the cut and the factorisation); every message names the array
 //! and index it refers to, and the details name them by field.
 
-use curvenet_core::binding::CutOptions;
-use curvenet_core::blend_shapes::BlendShape;
-use curvenet_core::deformer::{CageInput, Rig};
-use curvenet_core::skinning::{
+use curvenet_core::BlendShape;
+use curvenet_core::CutOptions;
+use curvenet_core::{BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, PolyMesh};
+use curvenet_core::{CageInput, Rig};
+use curvenet_core::{ClosestPointBvh, MAT4_IDENTITY};
+use curvenet_core::{
     ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skeleton, Skin, SkinningMethod, SplineSkinning,
     SplineSkinningOptions, SurfaceWeights,
 };
-use curvenet_core::{BindOptions, Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, PolyMesh};
-use curvenet_core::{ClosestPointBvh, skinning};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, BindingStats, BindingTimings, CageStats, CurvenetSkinSpec, SkinMethod, SkinSpec,
     Warning,
@@ -425,7 +425,7 @@ fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError>
         Influences::new(n, skin.element_size as usize, &skin.joint_indices, &skin.joint_weights, n_joints)
             .map_err(bind("skin".into()))?;
     influences.renormalize(WEIGHT_SUM_TOLERANCE);
-    let geom_bind = skin.geom_bind_transform.unwrap_or(skinning::IDENTITY);
+    let geom_bind = skin.geom_bind_transform.unwrap_or(MAT4_IDENTITY);
     let options = SplineSkinningOptions::default();
     let mut surface: Option<ClosestPointBvh> = None;
     let mut splines = Vec::with_capacity(req.curvenets.len());

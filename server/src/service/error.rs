@@ -270,7 +270,7 @@ pub enum Phase {
 /// not compile until it has a code here, in server/README.md and the OpenAPI.
 pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) -> Code {
     use curvenet_core::Error as E;
-    use curvenet_core::error::SegmentRef;
+    use curvenet_core::SegmentRef;
     let frame = phase == Phase::Frame;
     let segment = |d: &mut ErrorDetails, s: &SegmentRef| {
         d.curvenet = Some(s.curvenet);
@@ -289,7 +289,7 @@ pub fn classify(e: &curvenet_core::Error, phase: Phase, d: &mut ErrorDetails) ->
         // The cage of a coupled cage-and-skeleton rig (or a frame's cage
         // arrays): the message names the face, edge, vertex or field.
         E::Cage(c) => {
-            use curvenet_core::cage::CageError as C;
+            use curvenet_core::CageError as C;
             d.what = what("cage");
             match c {
                 C::IndexOutOfRange { face, vertex, .. } => {
@@ -621,7 +621,7 @@ impl IntoResponse for ServiceError {
 #[cfg(test)]
 mod tests {
     use curvenet_core::Error as E;
-    use curvenet_core::error::{SampleRef, SegmentRef};
+    use curvenet_core::{SampleRef, SegmentRef};
 
     use super::*;
 

@@ -15,7 +15,7 @@ use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use std::collections::BTreeMap;
 
-use curvenet_core::adjust::{Adjustment, Rotate};
+use curvenet_core::{Adjustment, Rotate};
 use curvenet_schema::wire::{
     AdjustmentSpec, BlendShapeMode, ErrorBody, FrameBatchResponse, FrameRequest, FrameResponse,
 };

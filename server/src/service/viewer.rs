@@ -39,15 +39,15 @@ use axum::Json;
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use curvenet_core::adjust::Adjustment;
-use curvenet_core::binding::Surface;
-use curvenet_core::binding::{CROSSING, MESH_VERTEX, SAMPLE};
-use curvenet_core::curvenet::ScaledFrame;
-use curvenet_core::halfedge::INVALID;
+use curvenet_core::Adjustment;
+use curvenet_core::INVALID_INDEX;
+use curvenet_core::ScaledFrame;
+use curvenet_core::Surface;
 use curvenet_core::{
     BindOptions, Binding, Curvenet, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Error,
     MeshInput, PolyMesh, SamplingOptions,
 };
+use curvenet_core::{CUT_CROSSING, CUT_MESH_VERTEX, CUT_SAMPLE};
 use curvenet_schema::usd::{LayerFormat, encode_adjustment_layer};
 use curvenet_schema::wire::{
     AdjustmentSpec, BindingRequest, BindingResponse, BlendShapeMode, ErrorBody, FrameRequest, Warning,
@@ -93,7 +93,7 @@ const CSP: &str = "default-src 'self'; script-src 'self'; style-src 'self'; img-
 /// Samples farther than this fraction of the mesh's bounding-box diagonal
 /// from the surface are listed as a viewer warning (`far_samples`): half the
 /// distance at which the binding refuses them (`CutOptions::max_projection_distance`).
-pub const FAR_SAMPLE_WARNING: f64 = 0.5 * curvenet_core::binding::cut::DEFAULT_MAX_PROJECTION_DISTANCE;
+pub const FAR_SAMPLE_WARNING: f64 = 0.5 * curvenet_core::DEFAULT_MAX_PROJECTION_DISTANCE;
 
 /// Reads frame `k` of a stage opened in the viewer (the stage's k-th time
 /// code): posed pools, the rest pose, blend-shape weights and the stage's
@@ -844,13 +844,13 @@ fn frame_cage(entry: &Entry, frame: &Frame) -> Result<Option<Vec<[f64; 3]>>, Ser
     {
         deformer.blend_shapes().add_to(w, &mut base).map_err(|e| ServiceError::core(e, Phase::Frame))?;
     }
-    let input = curvenet_core::cage::CageFrame {
+    let input = curvenet_core::CageFrame {
         base: Some(&base),
         rest_cage: frame.rest_cage.as_deref(),
         joint_transforms: frame.joint_transforms.as_deref(),
         posed_cage_offsets: frame.posed_cage_offsets.as_deref(),
     };
-    let mut ws = curvenet_core::cage::CoupledWorkspace::default();
+    let mut ws = curvenet_core::CoupledWorkspace::default();
     let mut out = vec![[0.0; 3]; base.len()];
     rig.evaluate(&input, &mut ws, &mut out).map_err(|e| ServiceError::core(e, Phase::Frame).context("cage"))?;
     Ok(Some(ws.posed_cage().to_vec()))
@@ -915,10 +915,10 @@ pub fn data(entry: &Entry) -> ViewerData {
     let mut edge_kind = Vec::new();
     for h in 0..cut.n_halfedges() as u32 {
         let t = cut.twin(h);
-        if t != INVALID && t < h {
+        if t != INVALID_INDEX && t < h {
             continue; // one edge per halfedge pair
         }
-        let kind = if t == INVALID {
+        let kind = if t == INVALID_INDEX {
             EDGE_BOUNDARY
         } else if cut.face(t) == cut.face(h) {
             EDGE_CRACK
@@ -938,7 +938,9 @@ pub fn data(entry: &Entry) -> ViewerData {
     }
     let cut_view = CutView {
         points: (0..cut.n_vertices() as u32).flat_map(|v| cut.vertex(v).pos.to_array().map(|x| x as f32)).collect(),
-        mask: (0..cut.n_vertices() as u32).map(|v| cut.vertex(v).mask & (MESH_VERTEX | SAMPLE | CROSSING)).collect(),
+        mask: (0..cut.n_vertices() as u32)
+            .map(|v| cut.vertex(v).mask & (CUT_MESH_VERTEX | CUT_SAMPLE | CUT_CROSSING))
+            .collect(),
         edges,
         edge_kind,
         face_start,
@@ -972,7 +974,7 @@ pub fn data(entry: &Entry) -> ViewerData {
                         far_samples.len(),
                         FAR_SAMPLE_WARNING * 100.0,
                         distance(worst as usize) / diagonal * 100.0,
-                        curvenet_core::binding::cut::DEFAULT_MAX_PROJECTION_DISTANCE * 100.0
+                        curvenet_core::DEFAULT_MAX_PROJECTION_DISTANCE * 100.0
                     ),
                     segment: None,
                     touches: Vec::new(),
@@ -1144,7 +1146,7 @@ fn refusal(index: usize, stage: &ViewerStage) -> Option<ViewerRefusal> {
         stage: info(index, stage),
         code: answered.code.as_str().to_string(),
         message: answered.message,
-        diagonal: curvenet_core::mesh::bounding_box_diagonal(points),
+        diagonal: curvenet_core::bounding_box_diagonal(points),
         mesh: mesh_view,
         curvenets,
         highlight,

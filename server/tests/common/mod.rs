@@ -105,17 +105,17 @@ pub fn first_stdout_line(child: &mut std::process::Child, timeout: std::time::Du
 pub fn skinning_transforms(
     stage: &curvenet_schema::usd::Stage,
     rig: &curvenet_schema::usd::SkinRig,
-    skeleton: &curvenet_core::skinning::Skeleton,
+    skeleton: &curvenet_core::Skeleton,
     t: f64,
-) -> Vec<curvenet_core::skinning::Mat4> {
-    use curvenet_core::skinning;
+) -> Vec<curvenet_core::Mat4> {
+    use curvenet_core::{MAT4_IDENTITY, mat4_mul};
     let local = stage.joint_local_transforms(rig, Some(t)).unwrap();
-    let mut out = vec![skinning::IDENTITY; local.len()];
+    let mut out = vec![MAT4_IDENTITY; local.len()];
     skeleton.skinning_transforms(&local, &mut out).unwrap();
     let to_mesh = stage.skel_to_mesh_transform(rig, Some(t)).unwrap();
-    if to_mesh != skinning::IDENTITY {
+    if to_mesh != MAT4_IDENTITY {
         for m in &mut out {
-            *m = skinning::mul(m, &to_mesh);
+            *m = mat4_mul(m, &to_mesh);
         }
     }
     out

@@ -13,9 +13,9 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use curvenet_core::cage::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
-use curvenet_core::skinning::{self, Influences, Skeleton, Skin, SkinningMethod, SurfaceWeights};
+use curvenet_core::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
 use curvenet_core::{ClosestPointBvh, PolyMesh};
+use curvenet_core::{Influences, MAT4_IDENTITY, Skeleton, Skin, SkinningMethod, SurfaceWeights};
 use curvenet_schema::usd::Stage;
 use serde::Serialize;
 
@@ -75,7 +75,7 @@ pub fn bench_cage(fixtures: &Path, meshes: &[(&str, &Path)], repeats: usize) -> 
         .iter()
         .map(|&t| {
             let local = shot.joint_local_transforms(&rig, Some(t))?;
-            let mut out = vec![skinning::IDENTITY; local.len()];
+            let mut out = vec![MAT4_IDENTITY; local.len()];
             skeleton.skinning_transforms(&local, &mut out).map_err(core(&rig.skeleton))?;
             Ok(out)
         })

@@ -135,9 +135,8 @@ pub(super) fn export_mesh(
     {
         let path = dir.join(&unknown_vertex);
         written.push(path.clone());
-        let bytes: Vec<u8> = (0..a.n as u32)
-            .flat_map(|u| binding.unknown_vertex(curvenet_core::ids::Unknown(u)).0.to_le_bytes())
-            .collect();
+        let bytes: Vec<u8> =
+            (0..a.n as u32).flat_map(|u| binding.unknown_vertex(curvenet_core::Unknown(u)).0.to_le_bytes()).collect();
         std::fs::write(&path, bytes).map_err(io_err(&path))?;
     }
     Ok(Exported {

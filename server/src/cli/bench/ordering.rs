@@ -10,7 +10,7 @@
 use std::hint::black_box;
 
 use curvenet_core::Binding;
-use curvenet_core::cholesky::{Cholesky, Ordering, SymmetricTriplets};
+use curvenet_core::{Cholesky, FillOrdering, SymmetricTriplets};
 use serde::Serialize;
 
 use super::{CliError, CliResult, Series, Stopwatch, median, uniform};
@@ -46,7 +46,7 @@ pub(super) struct OrderingComparison {
 }
 
 struct Runs {
-    ordering: Ordering,
+    ordering: FillOrdering,
     factor: Option<Cholesky>,
     analysis: Vec<f64>,
     total: Vec<f64>,
@@ -58,7 +58,7 @@ struct Runs {
 pub(super) fn compare(binding: &Binding, repeats: usize, solves: usize) -> CliResult<OrderingComparison> {
     let a: SymmetricTriplets = binding.system_matrix();
     let n = a.n;
-    let mut runs: Vec<Runs> = [Ordering::Amd, Ordering::Metis]
+    let mut runs: Vec<Runs> = [FillOrdering::Amd, FillOrdering::Metis]
         .into_iter()
         .map(|ordering| Runs { ordering, factor: None, analysis: vec![], total: vec![], solves: Series::default() })
         .collect();

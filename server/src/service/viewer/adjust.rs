@@ -29,7 +29,7 @@
 //! stage's frame range, so `curvenet bake LAYER -o OUT` bakes the shot with
 //! the adjustments.
 
-use curvenet_core::adjust::{Adjustment, Rotate};
+use curvenet_core::{Adjustment, Rotate};
 use curvenet_schema::AdjustmentData;
 use curvenet_schema::usd::adjustment_attributes::{ORIENT, ROTATE_XYZ, SCALE, TANGENT_TRANSLATES, TRANSLATE};
 use curvenet_schema::usd::{AdjustmentLayer, AdjustmentOver, AdjustmentRotate};

@@ -9,7 +9,7 @@
 //! Segments are numbered as everywhere: (curvenet, spline, segment within
 //! the spline from its control point 0).
 
-use curvenet_core::binding::Surface;
+use curvenet_core::Surface;
 use curvenet_core::{CurvenetLayout, Error};
 use curvenet_schema::wire::{SegmentId, Warning};
 use serde::Serialize;
@@ -162,7 +162,7 @@ impl Scene<'_> {
     }
 
     fn name_error(&self, e: &Error, h: &mut Highlight) {
-        let seg = |s: &curvenet_core::error::SegmentRef| SegmentId::from(*s);
+        let seg = |s: &curvenet_core::SegmentRef| SegmentId::from(*s);
         match e {
             Error::Curvenet { curvenet, source } => {
                 h.curvenet = Some(*curvenet);
