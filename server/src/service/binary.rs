@@ -4,9 +4,20 @@
 
 use curvenet_schema::wire::{BinaryArray, BinaryFrameHeader, BinaryResponseHeader};
 
+use utoipa::ToSchema;
+
 use crate::bounded::BatchError;
 use crate::error::{Code, ServiceError};
-use crate::frames::{Frame, Solved};
+use crate::frame::{Frame, Solved};
+
+/// A binary frame body (`application/octet-stream`): u32 LE header length,
+/// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
+/// `BinaryResponseHeader` in answers), then the listed arrays as raw
+/// little-endian f32.
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+#[allow(dead_code)]
+pub struct BinaryFrames(Vec<u8>);
 
 pub const CONTENT_TYPE: &str = "application/octet-stream";
 
@@ -49,7 +60,7 @@ pub struct Expected<'a> {
 /// Parses a binary frame request: one frame, or `{"frames": [...]}` (then
 /// `batch` is true). The framing, the header and every array's name, index
 /// and shape (against `expected`) are checked before any array is decoded;
-/// values (finiteness) are checked by `frames::validate`. A curvenet without
+/// values (finiteness) are checked by `frame::validate`. A curvenet without
 /// a `posed` array is not articulated.
 pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool), ServiceError> {
     let (header, mut data) = split(body)?;
@@ -104,7 +115,7 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
             mode: h.blend_shape_mode,
             gradients: h.gradients,
             topology_hash: h.topology_hash,
-            adjustments: h.adjustments.iter().map(crate::frames::adjustment).collect(),
+            adjustments: h.adjustments.iter().map(crate::frame::adjustment).collect(),
             orientations: h.orientations,
             ..Frame::default()
         };

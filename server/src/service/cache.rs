@@ -21,9 +21,9 @@ use moka::future::Cache;
 use moka::notification::RemovalCause;
 use moka::policy::EvictionPolicy;
 
-use crate::binding::EffectiveOptions;
 use crate::error::{Code, ServiceError};
 use crate::metrics::Metrics;
+use crate::request::EffectiveOptions;
 
 /// A binding id: blake3 of the binding's content.
 pub type Key = [u8; 32];

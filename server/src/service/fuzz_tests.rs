@@ -273,9 +273,9 @@ proptest! {
         let limits = crate::limits::WorkLimits::default();
         let (r, peak) = peak_of(|| -> Result<(), crate::error::ServiceError> {
             let parsed: curvenet_schema::wire::BindingRequest = crate::extract::parse_json(&body)?;
-            crate::binding::validate(&parsed)?;
-            crate::binding::EffectiveOptions::of(&parsed)?;
-            crate::binding::predict(&parsed, &limits)?;
+            crate::request::validate(&parsed)?;
+            crate::request::EffectiveOptions::of(&parsed)?;
+            crate::request::predict(&parsed, &limits)?;
             Ok(())
         });
         prop_assert!(peak <= bound(body.len()), "{peak} bytes for a body of {}", body.len());
@@ -290,7 +290,7 @@ fn the_unmutated_request_passes_and_the_allocator_counts() {
     let body = serde_json::to_vec(&base_request()).unwrap();
     let (r, peak) = peak_of(|| {
         let parsed: curvenet_schema::wire::BindingRequest = crate::extract::parse_json(&body).unwrap();
-        crate::binding::validate(&parsed).and_then(|()| crate::binding::predict(&parsed, &Default::default()))
+        crate::request::validate(&parsed).and_then(|()| crate::request::predict(&parsed, &Default::default()))
     });
     assert!(r.is_ok(), "{:?}", r.err());
     assert!(peak > 0 && peak <= bound(body.len()), "{peak}");

@@ -9,18 +9,11 @@ use curvenet_schema::wire::{
     SkinMethod, SkinSpec, TouchAt, Warning,
 };
 use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
-use utoipa::{Modify, OpenApi, ToSchema};
+use utoipa::{Modify, OpenApi};
 
-use crate::{bake, batches, bindings, deform, frames, operations, viewer};
-
-/// A binary frame body (`application/octet-stream`): u32 LE header length,
-/// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
-/// `BinaryResponseHeader` in answers), then the listed arrays as raw
-/// little-endian f32.
-#[derive(ToSchema)]
-#[schema(value_type = String, format = Binary)]
-#[allow(dead_code)]
-pub struct BinaryFrames(Vec<u8>);
+use crate::binary::BinaryFrames;
+use crate::handlers::{bake, batches, bindings, deform, frames, operations};
+use crate::viewer;
 
 struct BearerAuth;
 
@@ -56,7 +49,7 @@ impl Modify for BearerAuth {
         operations::healthz,
         operations::readyz,
         operations::metrics,
-        operations::openapi_json,
+        openapi_json,
         viewer::stages,
         viewer::stage,
         viewer::stage_frame,
@@ -90,4 +83,11 @@ struct ApiDoc;
 /// The OpenAPI 3.1 document of the service.
 pub fn openapi() -> utoipa::openapi::OpenApi {
     ApiDoc::openapi()
+}
+
+/// `GET /openapi.json`.
+#[utoipa::path(get, path = "/openapi.json", tag = "operations", security(("bearer" = [])),
+    responses((status = 200, description = "This API, OpenAPI 3.1")))]
+pub(crate) async fn openapi_json() -> axum::Json<utoipa::openapi::OpenApi> {
+    axum::Json(openapi())
 }

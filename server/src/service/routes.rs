@@ -23,8 +23,9 @@ use tracing::field::Empty;
 
 use crate::error::{Code, ServiceError};
 use crate::extract::too_large;
+use crate::handlers::{bake, batches, bindings, deform, frames, operations};
 use crate::state::{AppState, panic_message};
-use crate::{bake, batches, bindings, deform, frames, operations, viewer};
+use crate::viewer;
 
 /// The whole service: `/v1` API, `/healthz`, `/readyz`, `/metrics`, `/openapi.json`.
 pub fn app(state: AppState) -> Router {
@@ -50,7 +51,7 @@ pub fn app(state: AppState) -> Router {
         .route("/v1/viewer/stages/{index}/export", post(viewer::stage_export))
         .route("/v1/viewer/stages/{index}/refusal", get(viewer::stage_refusal))
         .route("/metrics", get(operations::metrics))
-        .route("/openapi.json", get(operations::openapi_json))
+        .route("/openapi.json", get(crate::openapi::openapi_json))
         .route_layer(from_fn_with_state(state.clone(), auth));
     Router::new()
         .merge(open)

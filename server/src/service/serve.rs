@@ -36,48 +36,10 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::{Semaphore, watch};
 use tower::ServiceExt as _;
 
+use crate::config::ConnectionLimits;
 use crate::jobs::Reason;
 use crate::routes::app;
 use crate::state::AppState;
-
-/// Default time a client has to send a request head once it started.
-pub const DEFAULT_HEADER_TIMEOUT: Duration = Duration::from_secs(10);
-/// Default time an idle connection is kept open.
-pub const DEFAULT_IDLE_TIMEOUT: Duration = Duration::from_secs(60);
-/// Default time a body may stall, and the grace before its rate is checked.
-pub const DEFAULT_BODY_TIMEOUT: Duration = Duration::from_secs(30);
-/// Default slowest average body rate accepted after the grace, bytes/s.
-pub const DEFAULT_BODY_MIN_RATE: u64 = 16 << 10;
-/// Default cap on connections open at once.
-pub const DEFAULT_MAX_CONNECTIONS: usize = 512;
-
-/// Connection limits and timeouts (see the module docs and `extract::read_body`).
-#[derive(Debug, Clone, Copy)]
-pub struct ConnectionLimits {
-    /// A request head must arrive within this time of its first byte.
-    pub header_timeout: Duration,
-    /// A connection with no request being handled and no byte moving is closed after this.
-    pub idle_timeout: Duration,
-    /// A request body may not stall longer than this; after it, its average
-    /// rate must be at least `body_min_rate`.
-    pub body_timeout: Duration,
-    /// Slowest average rate of a body (bytes/s) once `body_timeout` has passed.
-    pub body_min_rate: u64,
-    /// Connections open at once; beyond, 503 and close.
-    pub max_connections: usize,
-}
-
-impl Default for ConnectionLimits {
-    fn default() -> Self {
-        Self {
-            header_timeout: DEFAULT_HEADER_TIMEOUT,
-            idle_timeout: DEFAULT_IDLE_TIMEOUT,
-            body_timeout: DEFAULT_BODY_TIMEOUT,
-            body_min_rate: DEFAULT_BODY_MIN_RATE,
-            max_connections: DEFAULT_MAX_CONNECTIONS,
-        }
-    }
-}
 
 /// How a shutdown ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

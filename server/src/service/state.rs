@@ -3,95 +3,17 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
-use crate::bake::Baker;
 use crate::cache::BindingCache;
+use crate::config::{Baker, Config};
 use crate::error::{Code, ServiceError};
 use crate::jobs::Jobs;
-use crate::limits::WorkLimits;
 use crate::metrics::Metrics;
 
-/// Default cache size: 2 GiB of bindings (measured: the 22k-vertex hand holds 77 MB, the 94k one about 300 MB).
-pub const DEFAULT_CACHE_BYTES: u64 = 2 << 30;
-/// Default body limit: 256 MiB (a JSON batch of 100k-vertex frames is large).
-pub const DEFAULT_BODY_LIMIT: usize = 256 << 20;
-/// Default solve permits: frames running or queued for a core at once.
-pub const DEFAULT_MAX_SOLVES: usize = 64;
-/// Default drain timeout at shutdown.
-pub const DEFAULT_DRAIN_TIMEOUT: Duration = Duration::from_secs(30);
-/// Default longest wait for a solve permit when all are taken.
-pub const DEFAULT_QUEUE_TIMEOUT: Duration = Duration::from_secs(2);
 /// Requests that may wait in line for a solve permit, per permit.
 pub const MAX_LINE_PER_SOLVE: usize = 4;
-/// Default largest answer of a batch, in bytes of f32 data.
-pub const DEFAULT_MAX_BATCH_BYTES: u64 = 256 << 20;
-/// Default `Config::max_batch_memory`: 1.5 GiB held by batches in flight
-/// together. The largest batch the other defaults let in (a 256 MiB binary
-/// answer, with a rest pose per frame) holds about 1.07 GB (see
-/// `solve::batch_held_bytes`); so one always fits, and with smaller ones a
-/// few run at once.
-pub const DEFAULT_MAX_BATCH_MEMORY: u64 = 1536 << 20;
-/// Default `Config::max_bake_bytes`: 1 GiB of points (about 950 frames of
-/// the 94k hand); a bake's peak memory is a few times that (the layer is
-/// built from them at the end).
-pub const DEFAULT_MAX_BAKE_BYTES: u64 = 1 << 30;
-
-/// Everything `curvenet serve` can be configured with.
-#[derive(Debug, Clone)]
-pub struct Config {
-    /// Bytes of bindings the cache keeps (estimated; least recently used evicted first).
-    pub cache_bytes: u64,
-    /// Largest request body, bytes (413 beyond).
-    pub body_limit: usize,
-    /// Solves (frames, bindings, bakes) admitted at once, running or
-    /// waiting for a solve thread; beyond it requests get 503 + Retry-After.
-    pub max_solves: usize,
-    /// Threads of the frame-solve pool (0: one per core).
-    pub solve_threads: usize,
-    /// How long requests in flight may finish after a shutdown signal.
-    pub drain_timeout: Duration,
-    /// Bearer token required on every route but /healthz and /readyz.
-    pub token: Option<String>,
-    /// Directories `POST /v1/bake` may read from and write to.
-    pub bake_roots: Vec<PathBuf>,
-    /// Limits on the work of one binding (density, segments, time).
-    pub work: WorkLimits,
-    /// Longest a request waits, in line, for a solve permit before 503.
-    pub queue_timeout: Duration,
-    /// Largest answer of one batch: frames × vertices × 12 bytes (48 with gradients).
-    pub max_batch_bytes: u64,
-    /// Bytes all batches in flight may hold together (their frames, results
-    /// and answers): a batch waits in line for its share up to the queue
-    /// timeout (then 503); one larger than all of it is refused (422).
-    pub max_batch_memory: u64,
-    /// Largest bake: the points it holds until it writes, frames × vertices × 12 bytes.
-    pub max_bake_bytes: u64,
-    /// Connection limits and timeouts (headers, bodies, idle keep-alive).
-    pub connections: crate::serve::ConnectionLimits,
-}
-
-impl Default for Config {
-    fn default() -> Self {
-        Self {
-            cache_bytes: DEFAULT_CACHE_BYTES,
-            body_limit: DEFAULT_BODY_LIMIT,
-            max_solves: DEFAULT_MAX_SOLVES,
-            solve_threads: 0,
-            drain_timeout: DEFAULT_DRAIN_TIMEOUT,
-            token: None,
-            bake_roots: Vec::new(),
-            work: WorkLimits::default(),
-            queue_timeout: DEFAULT_QUEUE_TIMEOUT,
-            max_batch_bytes: DEFAULT_MAX_BATCH_BYTES,
-            max_batch_memory: DEFAULT_MAX_BATCH_MEMORY,
-            max_bake_bytes: DEFAULT_MAX_BAKE_BYTES,
-            connections: Default::default(),
-        }
-    }
-}
 
 /// The shared state: a handle, cheap to clone.
 #[derive(Clone)]

@@ -15,7 +15,7 @@
 //! ```
 //!
 //! Frames solve through the service's one solve helper
-//! (`solve::solve_frames`: a solve permit, the solve pool, validation,
+//! (`pool::solve_frames`: a solve permit, the solve pool, validation,
 //! `Deformer::frame`, the frame metrics); the posed curvenet's
 //! samples and scaled frames come from `Binding::curvenet_pose`, the
 //! samples and frames the solve itself uses. Positions are sent as flat
@@ -67,8 +67,8 @@ use highlight::{NetGeometry, Scene};
 use crate::cache::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
-use crate::frames::{Frame, Solved};
-use crate::solve::{Numbering, solve_frames};
+use crate::frame::{Frame, Solved};
+use crate::pool::{Numbering, solve_frames};
 use crate::state::{AppState, blocking};
 
 /// The page and its assets, built into the binary.
@@ -487,7 +487,7 @@ async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry
         return Ok((e, true));
     }
     let (entry, cached) =
-        crate::bindings::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
+        crate::handlers::bindings::bind(state, stage.binding.clone()).await.map_err(|e| e.context(&stage.mesh))?;
     *stage.bound.lock().unwrap_or_else(|e| e.into_inner()) = Some(entry.id.clone());
     Ok((entry, cached))
 }
@@ -670,7 +670,7 @@ fn user_adjustments(
     entry
         .binding()
         .check_adjustments(&user)
-        .map_err(|e| crate::frames::name_adjustment(ServiceError::core(e, Phase::Frame), &user))?;
+        .map_err(|e| crate::frame::name_adjustment(ServiceError::core(e, Phase::Frame), &user))?;
     Ok(user)
 }
 

@@ -12,10 +12,11 @@ use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, ErrorBody};
 
-use crate::binding::{EffectiveOptions, build, validate};
+use crate::builder::build;
 use crate::cache::{Entry, binding_key, hex, parse_key, topology_key};
 use crate::error::{Code, ServiceError};
 use crate::extract::{CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
+use crate::request::{EffectiveOptions, validate};
 use crate::state::{AppState, blocking};
 
 /// Binds a mesh to its curvenets, or finds the binding already cached.
@@ -90,7 +91,7 @@ pub(crate) async fn bind(state: &AppState, req: BindingRequest) -> Result<(Arc<E
         move || {
             validate(&req)?;
             let options = EffectiveOptions::of(&req)?;
-            let prediction = crate::binding::predict(&req, &limits)?;
+            let prediction = crate::request::predict(&req, &limits)?;
             if prediction.bytes_at_least > capacity {
                 return Err(crate::cache::too_small(prediction.bytes_at_least, capacity, "at least"));
             }

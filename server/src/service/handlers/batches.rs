@@ -8,9 +8,9 @@ use axum::extract::State;
 use axum::response::Response;
 use curvenet_schema::wire::{ErrorBody, FrameBatchRequest, FrameBatchResponse};
 
+use crate::binary::BinaryFrames;
 use crate::error::ServiceError;
 use crate::extract::{Admission, CachedBinding, ContentType, JsonOrBinary, SizedBody};
-use crate::openapi::BinaryFrames;
 use crate::state::AppState;
 
 /// Deforms many frames of one binding in parallel; answers in frame order.
@@ -50,8 +50,8 @@ pub(crate) async fn post_frames_batch(
     // are free besides, each with a slot. The full share, once parsed,
     // opens the gate (solve.rs).
     let _slot = state.batch_slot().await?;
-    let first = bytes.len() as u64 + crate::frames::input_bound(form, bytes.len());
+    let first = bytes.len() as u64 + super::frames::input_bound(form, bytes.len());
     let memory = state.batch_first_share(first).await?;
     let admission = Admission::one(&state).await?.widen(&state);
-    crate::frames::answer(&state, entry, form, bytes, admission, true, Some(memory)).await
+    super::frames::answer(&state, entry, form, bytes, admission, true, Some(memory)).await
 }

@@ -1,5 +1,5 @@
-//! Operations: `/healthz`, `/readyz`, `/metrics` (Prometheus text) and
-//! `/openapi.json`.
+//! Operations: `/healthz`, `/readyz`, `/metrics` (Prometheus text);
+//! `/openapi.json` is served by openapi.rs.
 
 use axum::Json;
 use axum::extract::State;
@@ -39,10 +39,4 @@ pub(crate) async fn metrics(State(state): State<AppState>) -> Response {
     inner.metrics.bindings_cancelled.absolute(inner.jobs.cancelled());
     ([(header::CONTENT_TYPE, HeaderValue::from_static("text/plain; version=0.0.4"))], inner.metrics.render())
         .into_response()
-}
-
-#[utoipa::path(get, path = "/openapi.json", tag = "operations", security(("bearer" = [])),
-    responses((status = 200, description = "This API, OpenAPI 3.1")))]
-pub(crate) async fn openapi_json() -> Json<utoipa::openapi::OpenApi> {
-    Json(crate::openapi())
 }

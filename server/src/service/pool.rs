@@ -15,15 +15,12 @@ use std::task::{Context, Poll};
 use axum::body::Bytes;
 
 use crate::cache::Entry;
+use crate::config::BATCH_FRAMES;
 use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
-use crate::frames::{self, Frame, Solved};
+use crate::frame::{self, Frame, Solved};
 use crate::metrics::Metrics;
 use crate::state::{AppState, BatchMemory, blocking};
-
-/// Frames of one request solved together (`Deformer::frames`): the bake's
-/// default group size (core's measured default).
-pub(crate) const BATCH_FRAMES: usize = curvenet_core::DEFAULT_BATCH_FRAMES;
 
 /// How the frames of a request are named in its errors.
 #[derive(Debug, Clone, Copy)]
@@ -61,7 +58,7 @@ impl Numbering {
 /// batches run waits for about one group of each, not for them; a batch
 /// whose client goes away (this future is dropped) stops after its wave.
 /// A batch holds `memory` (reserved for its parsed frames before it was
-/// read, [`frames::input_bound`]), made its full size once its frames are
+/// read, [`crate::frames::input_bound`]), made its full size once its frames are
 /// read ([`batch_held_bytes`]: its frames, results and answer; waiting in
 /// line for the rest), and returned beside the answer for the answer's body
 /// to hold until it is sent ([`HeldBody`]).
@@ -84,8 +81,8 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
                 let [frame] = &frames[..] else {
                     return Err(ServiceError::internal(format!("one frame expected, {} read", frames.len())));
                 };
-                frames::validate(&entry, frame).map_err(|e| numbering.name(0, e))?;
-                let solved = vec![frames::solve(&entry, frame).map_err(|e| numbering.name(0, e))?];
+                frame::validate(&entry, frame).map_err(|e| numbering.name(0, e))?;
+                let solved = vec![frame::solve(&entry, frame).map_err(|e| numbering.name(0, e))?];
                 record(&metrics, &solved);
                 let solve_ms = solved[0].solve_ms;
                 Ok((answer(&entry, solved)?, solve_ms))
@@ -101,7 +98,7 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
         blocking(move || {
             let frames = read(&entry)?;
             for (i, f) in frames.iter().enumerate() {
-                frames::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
+                frame::validate(&entry, f).map_err(|e| numbering.name(i, e))?;
             }
             let answer = check_batch_size(&entry, &frames, max_bytes, json)?;
             let held = batch_held_bytes(&entry, &frames, answer);
@@ -160,7 +157,7 @@ async fn solve_in_waves(
                 let (frames, entry) = (frames.clone(), entry.clone());
                 state.spawn_on_pool(move || {
                     let group = &frames[start..(start + size).min(frames.len())];
-                    frames::solve_group(&entry, group).map_err(|(j, e)| numbering.name(start + j, e))
+                    frame::solve_group(&entry, group).map_err(|(j, e)| numbering.name(start + j, e))
                 })
             })
             .collect();

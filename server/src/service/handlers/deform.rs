@@ -8,11 +8,11 @@ use axum::extract::State;
 use axum::response::{IntoResponse, Response};
 use curvenet_schema::wire::{DeformRequest, DeformResponse, ErrorBody};
 
-use crate::bindings::bind;
+use super::bindings::bind;
 use crate::error::ServiceError;
 use crate::extract::{Admission, ContentType, JsonOnly, SizedBody, parse_json};
-use crate::frames::Frame;
-use crate::solve::{Numbering, solve_frames};
+use crate::frame::Frame;
+use crate::pool::{Numbering, solve_frames};
 use crate::state::{AppState, blocking};
 
 /// Binds (through the cache) and deforms one frame in one request.

@@ -1,5 +1,5 @@
 //! Bakes: `POST /v1/bake`: path checks against the configured roots, then
-//! the bake itself through a [`Baker`] the command line supplies (the bake
+//! the bake itself through a [`Baker`](crate::config::Baker) the command line supplies (the bake
 //! command lives in the binary, `cli::bake`; tests supply their own), holding
 //! a solve permit.
 //!
@@ -10,57 +10,17 @@
 //! symlink inside a root cannot point the write outside it).
 
 use std::path::{Component, Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
 use axum::Json;
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
-use curvenet_core::Cancel;
 use curvenet_schema::wire::{BakeRequest, BakeResponse, ErrorBody};
 
+use crate::config::{BakeFailure, BakeJob};
 use crate::error::{Code, ServiceError};
 use crate::extract::{Admission, ContentType, JsonOnly, SizedBody, parse_json};
 use crate::state::{AppState, blocking};
-
-/// One bake, with checked, canonical paths.
-#[derive(Debug, Clone)]
-pub struct BakeJob {
-    pub stage: PathBuf,
-    pub output: PathBuf,
-    /// `A-B` or `A`, as the bake command takes it.
-    pub frames: Option<String>,
-    /// The canonical bake roots: every layer and asset the stage opens
-    /// (sublayers, references, payloads) must resolve inside one.
-    pub roots: Vec<PathBuf>,
-    /// Largest `frames × vertices × 12` bytes of points the bake may hold
-    /// (`--max-bake-bytes`): over it, [`BakeFailure::Limit`] before any work.
-    pub max_points_bytes: u64,
-    /// Raised when the request goes away (its client disconnected) or at the
-    /// drain deadline: the baker stops at its next chunk of frames, writing
-    /// nothing.
-    pub cancel: Cancel,
-}
-
-/// Why a bake failed.
-#[derive(Debug, Clone)]
-pub enum BakeFailure {
-    /// Bad input (the stage breaks the contract, a bad frame range, ...): 422.
-    Input(String),
-    /// Worth retrying (an I/O failure): 503.
-    Retry(String),
-    /// The stage opens a layer or asset outside the roots: 403 `path_forbidden`.
-    Forbidden(String),
-    /// Over `BakeJob::max_points_bytes`: 422 `limit_exceeded`.
-    Limit(String),
-    /// Stopped through `BakeJob::cancel`.
-    Cancelled,
-}
-
-/// Runs a bake to completion (blocking).
-/// Bakes a checked job; returns the bake's warnings (each naming the stage
-/// or prim it is about), which the answer carries.
-pub type Baker = Arc<dyn Fn(&BakeJob) -> Result<Vec<String>, BakeFailure> + Send + Sync>;
 
 fn forbidden(path: &str, roots: &[PathBuf]) -> ServiceError {
     if roots.is_empty() {
