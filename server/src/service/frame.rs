@@ -279,7 +279,7 @@ impl Frame {
 }
 
 /// Solves a validated frame through `curvenet_core::Deformer::frame`.
-/// CPU-heavy: run it on the solve pool (see solve.rs).
+/// CPU-heavy: run it on the solve pool (see pool.rs).
 pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
     let t0 = Instant::now();
     let n = entry.binding().n_vertices();

@@ -3,7 +3,7 @@
 //! declared-length check, the token, the request metrics). The
 //! handlers live in one file per resource (bindings.rs, frames.rs,
 //! batches.rs, deform.rs, bake.rs, operations.rs, viewer.rs); the steps they
-//! share are extractors (extract.rs) and the one solve helper (solve.rs).
+//! share are extractors (extract.rs) and the one solve helper (pool.rs).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};

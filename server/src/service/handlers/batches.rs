@@ -2,7 +2,7 @@
 //! binding in one request, solved in parallel (as many at once as the
 //! request could take solve permits) and answered in request order. Parsed,
 //! validated, solved and encoded as frames.rs does, through the one solve
-//! helper (solve.rs), which also bounds the answer (`--max-batch-bytes`).
+//! helper (pool.rs), which also bounds the answer (`--max-batch-bytes`).
 
 use axum::extract::State;
 use axum::response::Response;
@@ -48,7 +48,7 @@ pub(crate) async fn post_frames_batch(
     // frames before they are parsed (at most the whole budget: the real
     // size is known once parsed); then a solve permit, and what permits
     // are free besides, each with a slot. The full share, once parsed,
-    // opens the gate (solve.rs).
+    // opens the gate (pool.rs).
     let _slot = state.batch_slot().await?;
     let first = bytes.len() as u64 + super::frames::input_bound(form, bytes.len());
     let memory = state.batch_first_share(first).await?;

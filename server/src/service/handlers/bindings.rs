@@ -1,6 +1,6 @@
 //! Bindings: `POST /v1/bindings`, `GET` and `DELETE /v1/bindings/{id}`.
 //! A posted binding is validated, checked against the work limits, hashed
-//! and built (binding.rs: `curvenet_core::Deformer::new`) through the cache,
+//! and built (builder.rs: `curvenet_core::Deformer::new`) through the cache,
 //! as a cancellable job (jobs.rs).
 
 use std::sync::Arc;

@@ -1,6 +1,6 @@
 //! Frames: `POST /v1/bindings/{id}/frames` (and the parsing and encoding
 //! `frames:batch` shares, batches.rs): the body is parsed (JSON or binary.rs)
-//! into frames (frame.rs), solved on the solve pool (solve.rs) and encoded
+//! into frames (frame.rs), solved on the solve pool (pool.rs) and encoded
 //! back in the request's form.
 
 use std::sync::Arc;
