@@ -110,7 +110,7 @@ pub struct Args {
     /// vertices × 12 bytes, all held until the layer is written) exceed
     /// this, e.g. 2GiB (default: 1/8 of this machine's memory; a bake's peak
     /// memory is about 3-4× its points).
-    #[arg(long, value_name = "BYTES", value_parser = super::serve::parse_bytes)]
+    #[arg(long, value_name = "BYTES", value_parser = super::units::parse_bytes)]
     pub max_points_bytes: Option<u64>,
     /// No progress line and no summary.
     #[arg(long, short)]

@@ -92,12 +92,10 @@
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use curvenet_core::{Binding, CurvenetInput, CurvenetLayout, Deformer, Frame, Mat3};
+use curvenet_core::{CurvenetLayout, Deformer, Frame, Mat3};
 use curvenet_core::{ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
-use curvenet_schema::usd::Stage;
-use curvenet_schema::{CurvenetData, MeshData};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -106,14 +104,13 @@ use super::{CliError, CliResult};
 mod cage;
 mod export;
 mod growth;
+mod inputs;
+mod measure;
 mod ordering;
 
-/// Largest curl angle of the generated poses, degrees.
-const MAX_ANGLE_DEG: f64 = 60.0;
-/// The articulation plane, as a fraction of the pool's extent along y.
-const PLANE: f64 = 0.55;
-/// Width of the smoothstep blend across the plane, as a fraction of the extent.
-const BAND: f64 = 0.10;
+use inputs::{MAX_ANGLE_DEG, TriSolve, build, load, pose};
+use measure::{Lap, Series, Stopwatch, max_distance, median, ms_since, ratio};
+
 /// Repetitions of each throughput measurement.
 const THROUGHPUT_REPEATS: usize = 3;
 
@@ -512,28 +509,6 @@ fn corpus_files(dir: &Path) -> CliResult<Vec<(String, PathBuf)>> {
     Ok(out)
 }
 
-/// The first curvenet-deformed mesh of `file` and its curvenets, with the load time.
-fn load(file: &Path) -> CliResult<(MeshData, Vec<CurvenetData>, f64)> {
-    let t = Instant::now();
-    let stage = Stage::open(file)?;
-    let mesh = stage
-        .deformed_meshes()?
-        .into_iter()
-        .next()
-        .ok_or_else(|| CliError::Input(format!("{}: no mesh deformed by curvenets", file.display())))?;
-    let nets: Vec<CurvenetData> = mesh.curvenets.iter().map(|p| stage.curvenet(p)).collect::<Result<_, _>>()?;
-    Ok((mesh, nets, ms_since(t)))
-}
-
-/// One `Deformer::new` of `mesh` and `nets`, timed (wall and thread CPU).
-fn build(mesh: &MeshData, nets: &[CurvenetData], context: &str) -> CliResult<(Deformer, Lap)> {
-    let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let input = curvenet_schema::deformer_input(mesh, &curvenets);
-    let clock = Stopwatch::start();
-    let deformer = Deformer::new(&input).map_err(core_err(context))?;
-    Ok((deformer, clock.stop()))
-}
-
 /// Solves one frame through `Deformer::frame` into `out`.
 fn solve(deformer: &Deformer, posed: &[Option<&[[f64; 3]]>], out: &mut [[f64; 3]]) -> curvenet_core::Result<()> {
     deformer.frame(&Frame { posed, ..Frame::default() }, out, None)
@@ -607,10 +582,6 @@ fn bench_corpus_mesh(
             .collect(),
         orderings,
     })
-}
-
-fn core_err(context: &str) -> impl FnOnce(curvenet_core::Error) -> CliError + '_ {
-    move |source| CliError::Core { context: context.to_string(), source }
 }
 
 fn bench_mesh(
@@ -806,62 +777,6 @@ fn bench_mesh(
     })
 }
 
-/// The pools of frame `i` of `n`: control points beyond the plane curl
-/// about the x axis towards +z (see the module docs). Frame 0 is neutral.
-fn pose(nets: &[CurvenetData], i: usize, n: usize) -> Vec<Vec<[f64; 3]>> {
-    let (lo, hi) = nets
-        .iter()
-        .flat_map(|c| c.pool.iter())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
-    let count = nets.iter().map(|c| c.pool.len()).sum::<usize>().max(1) as f64;
-    let zc = nets.iter().flat_map(|c| c.pool.iter()).map(|p| p[2]).sum::<f64>() / count;
-    let extent = (hi - lo).max(f64::MIN_POSITIVE);
-    let y0 = lo + PLANE * extent;
-    let band = BAND * extent;
-    let angle = MAX_ANGLE_DEG.to_radians() * 0.5 * (1.0 - (std::f64::consts::TAU * i as f64 / n as f64).cos());
-    nets.iter()
-        .map(|c| {
-            c.pool
-                .iter()
-                .map(|p| {
-                    let s = ((p[1] - (y0 - 0.5 * band)) / band).clamp(0.0, 1.0);
-                    let a = angle * s * s * (3.0 - 2.0 * s);
-                    if a == 0.0 {
-                        return *p;
-                    }
-                    let (sin, cos) = a.sin_cos();
-                    let (y, z) = (p[1] - y0, p[2] - zc);
-                    [p[0], y0 + y * cos - z * sin, zc + y * sin + z * cos]
-                })
-                .collect()
-        })
-        .collect()
-}
-
-/// `Binding::solve_in_place::<K>` on fixed random right-hand sides.
-struct TriSolve<const K: usize> {
-    src: Vec<[f64; K]>,
-    rhs: Vec<[f64; K]>,
-    work: Vec<[f64; K]>,
-}
-
-impl<const K: usize> TriSolve<K> {
-    fn new(n: usize, seed: u64) -> Self {
-        let mut rng = 0x9E37_79B9_7F4A_7C15u64 ^ seed;
-        let src: Vec<[f64; K]> = (0..n).map(|_| std::array::from_fn(|_| uniform(&mut rng))).collect();
-        Self { rhs: src.clone(), work: vec![[0.0; K]; n], src }
-    }
-
-    /// One solve (the right-hand side is restored outside the clock).
-    fn time(&mut self, binding: &Binding) -> Lap {
-        self.rhs.copy_from_slice(&self.src);
-        let clock = Stopwatch::start();
-        binding.solve_in_place(black_box(&mut self.rhs), &mut self.work);
-        black_box(&self.rhs);
-        clock.stop()
-    }
-}
-
 /// Copying `len` f64 there and back (two passes): the memory-bandwidth reference.
 struct CopyReference {
     a: Vec<f64>,
@@ -943,123 +858,6 @@ fn throughput(deformer: &Deformer, inputs: &[Vec<Option<&[[f64; 3]]>>], jobs: us
     let t = Instant::now();
     run(jobs).map_err(|source| CliError::Core { context: "parallel bench frames".into(), source })?;
     Ok(jobs as f64 / t.elapsed().as_secs_f64())
-}
-
-/// One measurement: wall time and, where available, the calling thread's
-/// CPU time (which leaves out the time the thread was preempted: the
-/// machine this runs on is often shared).
-#[derive(Clone, Copy)]
-struct Lap {
-    wall_ms: f64,
-    cpu_ms: Option<f64>,
-}
-
-#[derive(Clone, Copy)]
-struct Stopwatch {
-    wall: Instant,
-    cpu: Option<Duration>,
-}
-
-impl Stopwatch {
-    fn start() -> Self {
-        let cpu = thread_cpu_time();
-        Self { wall: Instant::now(), cpu }
-    }
-
-    fn stop(self) -> Lap {
-        let wall_ms = ms_since(self.wall);
-        let cpu_ms = self.cpu.zip(thread_cpu_time()).map(|(a, b)| b.saturating_sub(a).as_secs_f64() * 1e3);
-        Lap { wall_ms, cpu_ms }
-    }
-}
-
-/// Repeated measurements of one thing.
-#[derive(Default)]
-struct Series {
-    wall: Vec<f64>,
-    cpu: Vec<Option<f64>>,
-}
-
-impl Series {
-    fn push(&mut self, lap: Lap) {
-        self.wall.push(lap.wall_ms);
-        self.cpu.push(lap.cpu_ms);
-    }
-    fn wall(&self) -> f64 {
-        median(self.wall.clone())
-    }
-    fn wall_min(&self) -> f64 {
-        self.wall.iter().copied().fold(f64::INFINITY, f64::min)
-    }
-    fn wall_max(&self) -> f64 {
-        self.wall.iter().copied().fold(0.0, f64::max)
-    }
-    /// Median CPU time, if every measurement has one.
-    fn cpu(&self) -> Option<f64> {
-        let v: Option<Vec<f64>> = self.cpu.iter().copied().collect();
-        v.filter(|v| !v.is_empty()).map(median)
-    }
-}
-
-/// CPU time consumed by the calling thread (`CLOCK_THREAD_CPUTIME_ID`).
-/// std has no thread CPU clock; libc's `clock_gettime` is linked into
-/// every Linux Rust program, so it is declared here rather than adding a
-/// dependency.
-#[cfg(all(target_os = "linux", target_pointer_width = "64"))]
-fn thread_cpu_time() -> Option<Duration> {
-    #[repr(C)]
-    struct Timespec {
-        tv_sec: i64,
-        tv_nsec: i64,
-    }
-    unsafe extern "C" {
-        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
-    }
-    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
-    let mut ts = Timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: clock_gettime writes one `struct timespec` (two 64-bit fields
-    // on 64-bit Linux) through the pointer, which points to one.
-    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    (rc == 0 && ts.tv_sec >= 0 && (0..1_000_000_000).contains(&ts.tv_nsec))
-        .then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
-}
-
-#[cfg(not(all(target_os = "linux", target_pointer_width = "64")))]
-fn thread_cpu_time() -> Option<Duration> {
-    None
-}
-
-fn uniform(state: &mut u64) -> f64 {
-    // xorshift64*: deterministic right-hand sides in [-1, 1).
-    *state ^= *state >> 12;
-    *state ^= *state << 25;
-    *state ^= *state >> 27;
-    let x = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
-    (x >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-}
-
-fn max_distance(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(p, q)| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt())
-        .fold(0.0, f64::max)
-}
-
-fn ms_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
-
-fn ratio(a: f64, b: f64) -> f64 {
-    if b > 0.0 { a / b } else { 0.0 }
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
 }
 
 fn text_report(r: &Report) -> String {

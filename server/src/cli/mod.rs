@@ -8,6 +8,7 @@ pub mod inspect;
 pub mod rig;
 pub mod serve;
 pub mod stitch;
+pub mod units;
 
 /// A command-line failure. Bad input (exit 2) is kept apart from failures
 /// that may succeed on retry (exit 75, EX_TEMPFAIL), so a farm retries only

@@ -25,10 +25,10 @@ pub struct Args {
     #[arg(long, env = "CURVENET_ADDR", default_value = "127.0.0.1:8720")]
     pub addr: String,
     /// Memory for cached bindings (estimated), e.g. 2GiB, 512MiB, 1000000.
-    #[arg(long, env = "CURVENET_CACHE_BYTES", default_value = "2GiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_CACHE_BYTES", default_value = "2GiB", value_parser = super::units::parse_bytes)]
     pub cache_bytes: u64,
     /// Largest request body, e.g. 256MiB.
-    #[arg(long, env = "CURVENET_BODY_LIMIT", default_value = "256MiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_BODY_LIMIT", default_value = "256MiB", value_parser = super::units::parse_bytes)]
     pub body_limit: u64,
     /// Solves (frames, bindings, bakes) admitted at once, running or queued
     /// for a solve thread; beyond it: 503 with Retry-After.
@@ -53,18 +53,18 @@ pub struct Args {
     pub max_binding_seconds: f64,
     /// Largest answer of a frames:batch request (frames × vertices × 12
     /// bytes, 48 with gradients), e.g. 256MiB.
-    #[arg(long, env = "CURVENET_MAX_BATCH_BYTES", default_value = "256MiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_MAX_BATCH_BYTES", default_value = "256MiB", value_parser = super::units::parse_bytes)]
     pub max_batch_bytes: u64,
     /// Memory all frames:batch requests in flight may hold together (their
     /// frames, results and answers), e.g. 1536MiB; a batch waits in line
     /// for its share up to --queue-timeout (then 503 saturated), and one
     /// larger than all of it is refused (422 limit_exceeded).
-    #[arg(long, env = "CURVENET_MAX_BATCH_MEMORY", default_value = "1536MiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_MAX_BATCH_MEMORY", default_value = "1536MiB", value_parser = super::units::parse_bytes)]
     pub max_batch_memory: u64,
     /// Largest `POST /v1/bake`, as the points it holds until it writes its
     /// layer (frames × vertices × 12 bytes), e.g. 1GiB; over it: 422
     /// limit_exceeded before any work.
-    #[arg(long, env = "CURVENET_MAX_BAKE_BYTES", default_value = "1GiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_MAX_BAKE_BYTES", default_value = "1GiB", value_parser = super::units::parse_bytes)]
     pub max_bake_bytes: u64,
     /// Seconds a request waits in line for a solve permit when all are taken (then 503).
     #[arg(long, env = "CURVENET_QUEUE_TIMEOUT", default_value_t = 2.0)]
@@ -80,7 +80,7 @@ pub struct Args {
     #[arg(long, env = "CURVENET_BODY_TIMEOUT", default_value_t = 30.0)]
     pub body_timeout: f64,
     /// Slowest average request-body rate accepted after --body-timeout, e.g. 16KiB (per second).
-    #[arg(long, env = "CURVENET_BODY_MIN_RATE", default_value = "16KiB", value_parser = parse_bytes)]
+    #[arg(long, env = "CURVENET_BODY_MIN_RATE", default_value = "16KiB", value_parser = super::units::parse_bytes)]
     pub body_min_rate: u64,
     /// Connections open at once; beyond, a client gets 503 and is disconnected.
     #[arg(long, env = "CURVENET_MAX_CONNECTIONS", default_value_t = curvenet_server::DEFAULT_MAX_CONNECTIONS)]
@@ -102,31 +102,6 @@ pub struct Args {
     /// stage on demand.
     #[arg(long = "open-stage", value_name = "STAGE")]
     pub open_stages: Vec<PathBuf>,
-}
-
-/// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB.
-pub(crate) fn parse_bytes(s: &str) -> Result<u64, String> {
-    let s = s.trim();
-    let split = s.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(s.len());
-    let (num, unit) = s.split_at(split);
-    let num: f64 = num.parse().map_err(|_| format!("{s:?} is not a byte count (e.g. 512MiB, 2GiB, 1000000)"))?;
-    let scale: f64 = match unit.trim().to_ascii_lowercase().as_str() {
-        "" | "b" => 1.0,
-        "k" | "kb" => 1e3,
-        "kib" => 1024.0,
-        "m" | "mb" => 1e6,
-        "mib" => 1024.0 * 1024.0,
-        "g" | "gb" => 1e9,
-        "gib" => 1024.0 * 1024.0 * 1024.0,
-        other => return Err(format!("unknown unit {other:?} (B, KB, KiB, MB, MiB, GB, GiB)")),
-    };
-    let bytes = num * scale;
-    // Beyond 2^63 bytes (8 EiB) is no memory a machine has: a typo, refused
-    // rather than saturated to u64::MAX.
-    if !(bytes.is_finite() && bytes < 9.2e18) {
-        return Err(format!("{s:?} is too large a byte count (at most 8 EiB)"));
-    }
-    Ok(bytes as u64)
 }
 
 pub fn run(args: &Args) -> CliResult {
@@ -576,19 +551,4 @@ fn read_frame(
         request: FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() },
         adjustments,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_bytes;
-
-    #[test]
-    fn byte_counts_parse_and_overflow_is_refused() {
-        assert_eq!(parse_bytes("1536MiB"), Ok(1536 << 20));
-        assert_eq!(parse_bytes("2GiB"), Ok(2 << 30));
-        assert_eq!(parse_bytes("0"), Ok(0));
-        for bad in ["18446744073709551616", "9999999999999999999999KiB", "1e400", "12XB", ""] {
-            assert!(parse_bytes(bad).is_err(), "{bad:?} parsed as {:?}", parse_bytes(bad));
-        }
-    }
 }

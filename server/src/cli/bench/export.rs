@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 use curvenet_core::Binding;
 use serde::Serialize;
 
-use super::{CliError, CliResult};
+use crate::cli::{CliError, CliResult};
 
 /// One exported mesh in the manifest.
 #[derive(Serialize)]

@@ -25,7 +25,10 @@ use std::path::Path;
 use curvenet_schema::{CurvenetData, MeshData};
 use serde::Serialize;
 
-use super::{CliError, CliResult, Frame, Stopwatch, TriSolve, build, load, median, ms_since, pose};
+use super::inputs::{TriSolve, build, load, pose};
+use super::measure::{Stopwatch, median, ms_since};
+use crate::cli::{CliError, CliResult};
+use curvenet_core::Frame;
 
 /// Binding target (ms) and frame target (× the base frame).
 const BINDING_TARGET_MS: f64 = 1500.0;

@@ -13,7 +13,8 @@ use curvenet_core::Binding;
 use curvenet_core::{Cholesky, FillOrdering, SymmetricTriplets};
 use serde::Serialize;
 
-use super::{CliError, CliResult, Series, Stopwatch, median, uniform};
+use super::measure::{Series, Stopwatch, median, uniform};
+use crate::cli::{CliError, CliResult};
 
 /// One ordering on one binding's matrix.
 #[derive(Serialize, Clone)]
