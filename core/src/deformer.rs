@@ -27,6 +27,8 @@
 //!   each frame's work before the solves, then ONE sweep of each triangular
 //!   solve over all the group's columns (9 per frame, then 3), then each
 //!   frame's work after them: the factor is read once per group
+//! Frame ──Deformer::pose──▶ FramePose: a frame's steps before the solve
+//!   alone (rest pose, posed pools, cage), for tools that draw them (the viewer)
 //! ```
 //!
 //! A `Deformer` is immutable and `Send + Sync`: frames of one deformer may
@@ -210,16 +212,73 @@ struct Scratch {
     ws: Workspace,
     /// Gradients for the `after` blend-shape mode when the caller wants none.
     gradients: Vec<[f64; 9]>,
-    /// The sculpted rest pose of the `before` mode.
-    sculpted: Vec<[f64; 3]>,
     /// `None` per curvenet, for frames that articulate none.
     unposed: Vec<Option<&'static [[f64; 3]]>>,
+    /// The buffers of the frame's pose before the solve ([`Deformer::pose_rig`]).
+    rig: RigScratch,
+}
+
+/// The buffers [`Deformer::pose_rig`] poses a frame's rest pose and
+/// curvenets in (blend shapes before, skinning, the coupled cage).
+#[derive(Debug, Default)]
+struct RigScratch {
+    /// The sculpted rest pose of the `before` mode.
+    sculpted: Vec<[f64; 3]>,
     /// The skinned rest pose of a frame with joint transforms.
     skinned: Vec<[f64; 3]>,
     /// The spline-skinned pool of each curvenet (empty for the others).
     pools: Vec<Vec<[f64; 3]>>,
     /// The coupled cage's buffers.
     cage: CoupledWorkspace,
+}
+
+/// A frame's pose as the solve takes it ([`Deformer::pose_rig`]): the rest
+/// pose and the posed pool of each curvenet, borrowed from the frame and
+/// from the workspace.
+struct Posed<'p> {
+    /// The rest pose the binding deforms from (`None`: the projection pose).
+    rest: Option<&'p [[f64; 3]]>,
+    /// Every curvenet's posed pool when the rig spline-skinned some, else empty.
+    skinned: Vec<Option<&'p [[f64; 3]]>>,
+    /// The frame's own posed pools, or one `None` per curvenet when it gave none.
+    given: &'p [Option<&'p [[f64; 3]]>],
+}
+
+impl<'p> Posed<'p> {
+    /// The posed pool of each curvenet (`None`: it tracks the rest pose).
+    fn posed(&self) -> &[Option<&'p [[f64; 3]]>] {
+        if self.skinned.is_empty() { self.given } else { &self.skinned }
+    }
+}
+
+/// A frame's pose before its solve, as [`Deformer::frame`] gives it to the
+/// binding ([`Deformer::pose`]): for tools that draw what the solve sees
+/// (the service's viewer) without evaluating blend shapes, skinning or
+/// cages themselves.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FramePose {
+    /// The rest pose the curvenets' tracking and the solve use: the frame's
+    /// rest pose with blend shapes in the `before` mode added, skinned by the
+    /// rig, through the coupled cage. `None`: the projection pose (the frame
+    /// gave none and nothing changed it).
+    pub rest: Option<Vec<[f64; 3]>>,
+    /// The posed pool of each curvenet (absolute positions), in binding
+    /// order: the spline skinning of a spline-skinned curvenet, else the
+    /// frame's own; `None` for a curvenet that tracks the rest pose.
+    pub posed: Vec<Option<Vec<[f64; 3]>>>,
+    /// The coupled cage this frame, for a deformer with a cage.
+    pub cage: Option<CagePose>,
+}
+
+/// A coupled cage as one frame poses it ([`FramePose::cage`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CagePose {
+    /// The rest cage `C` (the frame's rest-cage edits, then CageRev of its
+    /// posed-cage offsets), the mesh's space.
+    pub rest: Vec<[f64; 3]>,
+    /// The posed cage `C′`: CageUp of the skinned mesh for a cage coupled
+    /// with a skeleton (the skeleton's space), else the rest cage.
+    pub posed: Vec<[f64; 3]>,
 }
 
 /// The workspaces of a group of frames solved together ([`Deformer::frames`]).
@@ -507,14 +566,61 @@ impl Deformer {
         self.finish(frame, s, out, gradients)
     }
 
-    /// A frame's work before its solves, into `s`: checks, blend shapes in
-    /// the `before` mode, the rig's skinning, then the binding's checks and
-    /// curvenet samples (`Binding::deform_samples`). The constraint rows
-    /// come next: `Binding::deform_rows` for one frame, or a group's
+    /// A frame's work before its solves, into `s`: the frame posed
+    /// ([`Self::pose_rig`]), then the binding's checks and curvenet samples
+    /// (`Binding::deform_samples`). The constraint rows come next:
+    /// `Binding::deform_rows` for one frame, or a group's
     /// `Binding::lanes_rows` (the harmonic right-hand side is built by
     /// [`Self::solve_staged`], or in a group's block). `n_out`: the length
     /// of the caller's output points.
     fn stage(&self, frame: &Frame<'_>, s: &mut Scratch, n_out: usize) -> Result<()> {
+        let Scratch { ws, unposed, rig, .. } = s;
+        let posed = self.pose_rig(frame, rig, unposed, true)?;
+        let input = FrameInput { posed: posed.posed(), rest: posed.rest, adjustments: frame.adjustments };
+        self.binding.deform_samples(&input, ws, n_out)
+    }
+
+    /// A frame's pose as [`Self::frame`] gives it to the solve, without
+    /// solving: the rest pose (blend shapes in the `before` mode, the rig's
+    /// skinning, the coupled cage), every curvenet's posed pool (spline
+    /// skinning) and the cage, by the very code [`Self::frame`] runs (so
+    /// bit for bit what it solves from). For tools that draw a frame's
+    /// pose, like the service's viewer. Refuses what [`Self::frame`] refuses
+    /// before its solve (blend-shape weights, joint transforms, cage edits,
+    /// posed pools of a skinned frame; the binding's own checks of the pools
+    /// and the rest pose come with the solve). Counts no G¹-flexible
+    /// iterations ([`Self::flexible_stats`] counts frames).
+    pub fn pose(&self, frame: &Frame<'_>) -> Result<FramePose> {
+        let mut s = self.take();
+        let result = (|| {
+            let Scratch { unposed, rig, .. } = &mut s;
+            let posed = self.pose_rig(frame, rig, unposed, false)?;
+            let rest = posed.rest.map(<[_]>::to_vec);
+            let pools = posed.posed().iter().map(|p| p.map(<[_]>::to_vec)).collect();
+            let cage = self
+                .cage
+                .as_ref()
+                .map(|_| CagePose { rest: rig.cage.rest_cage().to_vec(), posed: rig.cage.posed_cage().to_vec() });
+            Ok(FramePose { rest, posed: pools, cage })
+        })();
+        self.give(s);
+        result
+    }
+
+    /// A frame posed before its solve, into `buffers` ([`Self::stage`] and
+    /// [`Self::pose`] both pose through here): checks, blend shapes in the
+    /// `before` mode, the rig's skinning (through the coupled cage when
+    /// there is one), the spline-skinned curvenets' pools. `unposed`: one
+    /// `None` per curvenet, for a frame that articulates none.
+    /// `count_flexible`: add the G¹-flexible iterations to the deformer's
+    /// [`FlexibleStats`].
+    fn pose_rig<'p>(
+        &'p self,
+        frame: &Frame<'p>,
+        buffers: &'p mut RigScratch,
+        unposed: &'p [Option<&'static [[f64; 3]]>],
+        count_flexible: bool,
+    ) -> Result<Posed<'p>> {
         let n = self.binding.n_vertices();
         if let Some(w) = frame.blend_shape_weights
             && w.len() != self.shapes.len()
@@ -547,16 +653,17 @@ impl Deformer {
         if skinning.is_some() && !frame.posed.is_empty() && frame.posed.len() != n_nets {
             return Err(Error::CountMismatch { what: "posed curvenets", expected: n_nets, got: frame.posed.len() });
         }
+        let RigScratch { sculpted, skinned, pools, cage: cage_ws } = buffers;
         let weights = self.active_weights(frame);
         let rest = match (weights, frame.blend_shape_mode) {
             (Some(w), BlendShapeMode::Before) => {
-                s.sculpted.clear();
-                s.sculpted.extend_from_slice(frame.rest.unwrap_or(&self.projection_points));
-                if s.sculpted.len() != n {
-                    return Err(Error::CountMismatch { what: "rest-pose points", expected: n, got: s.sculpted.len() });
+                sculpted.clear();
+                sculpted.extend_from_slice(frame.rest.unwrap_or(&self.projection_points));
+                if sculpted.len() != n {
+                    return Err(Error::CountMismatch { what: "rest-pose points", expected: n, got: sculpted.len() });
                 }
-                self.shapes.add_to(w, &mut s.sculpted)?;
-                Some(&s.sculpted[..])
+                self.shapes.add_to(w, sculpted)?;
+                Some(&sculpted[..])
             }
             _ => frame.rest,
         };
@@ -568,22 +675,22 @@ impl Deformer {
             (None, Some(cage)) => {
                 // The cage alone (or a rig posed at bind this frame).
                 let base = rest.unwrap_or(&self.projection_points);
-                s.skinned.resize(base.len(), [0.0; 3]);
+                skinned.resize(base.len(), [0.0; 3]);
                 let f = CageFrame {
                     base: Some(base),
                     rest_cage: frame.rest_cage,
                     joint_transforms: None,
                     posed_cage_offsets: frame.posed_cage_offsets,
                 };
-                cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
-                Some(&s.skinned[..])
+                cage.evaluate(&f, cage_ws, skinned)?;
+                Some(&skinned[..])
             }
             (Some((rig, frame_transforms)), cage) => {
                 let bind = rest.unwrap_or(&self.projection_points);
-                s.skinned.resize(bind.len(), [0.0; 3]);
+                skinned.resize(bind.len(), [0.0; 3]);
                 let transforms = match cage {
                     None => {
-                        rig.skin.skin_points(bind, frame_transforms, &mut s.skinned)?;
+                        rig.skin.skin_points(bind, frame_transforms, skinned)?;
                         frame_transforms
                     }
                     Some(cage) => {
@@ -593,41 +700,38 @@ impl Deformer {
                             joint_transforms: Some(frame_transforms),
                             posed_cage_offsets: frame.posed_cage_offsets,
                         };
-                        cage.evaluate(&f, &mut s.cage, &mut s.skinned)?;
+                        cage.evaluate(&f, cage_ws, skinned)?;
                         // The curvenets follow the joints SkelUp moved.
-                        s.cage.transforms()
+                        cage_ws.transforms()
                     }
                 };
-                s.pools.resize_with(n_nets, Vec::new);
+                pools.resize_with(n_nets, Vec::new);
                 for (k, spline) in rig.curvenets.iter().enumerate() {
                     let Some(spline) = spline else { continue };
-                    let pool = &mut s.pools[k];
+                    let pool = &mut pools[k];
                     pool.resize(spline.n_points(), [0.0; 3]);
                     let posed = if rig.flexible_iterations == 0 {
                         spline.pose(transforms, pool)
                     } else {
                         spline.pose_flexible(transforms, rig.flexible_iterations, pool).map(|report| {
-                            self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
-                            self.flexible_poses.fetch_add(1, Ordering::Relaxed);
+                            if count_flexible {
+                                self.flexible_iterations.fetch_add(report.iterations as u64, Ordering::Relaxed);
+                                self.flexible_poses.fetch_add(1, Ordering::Relaxed);
+                            }
                         })
                     };
                     posed.map_err(|e| Error::Curvenet { curvenet: k as u32, source: Box::new(e) })?;
                 }
-                skinned_posed.extend(rig.curvenets.iter().enumerate().map(|(k, spline)| match spline {
-                    Some(_) => Some(&s.pools[k][..]),
+                let pools: &'p [Vec<[f64; 3]>] = pools;
+                skinned_posed.extend(rig.curvenets.iter().enumerate().map(move |(k, spline)| match spline {
+                    Some(_) => Some(&pools[k][..]),
                     None => frame.posed.get(k).copied().flatten(),
                 }));
-                Some(&s.skinned[..])
+                Some(&skinned[..])
             }
         };
-        let posed = if !skinned_posed.is_empty() {
-            &skinned_posed[..]
-        } else if frame.posed.is_empty() {
-            &s.unposed[..]
-        } else {
-            frame.posed
-        };
-        self.binding.deform_samples(&FrameInput { posed, rest, adjustments: frame.adjustments }, &mut s.ws, n_out)
+        let given: &'p [Option<&'p [[f64; 3]]>] = if frame.posed.is_empty() { unposed } else { frame.posed };
+        Ok(Posed { rest, skinned: skinned_posed, given })
     }
 
     /// A frame's work after its solves: the output points (and gradients),
@@ -641,7 +745,7 @@ impl Deformer {
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
         let n = self.binding.n_vertices();
-        let Scratch { ws, gradients: own, sculpted, skinned, .. } = s;
+        let Scratch { ws, gradients: own, rig: RigScratch { sculpted, skinned, .. }, .. } = s;
         // The rest pose `stage` gave the binding.
         let rest = if self.cage.is_some() || (self.rig.is_some() && frame.joint_transforms.is_some()) {
             Some(&skinned[..])
@@ -694,11 +798,8 @@ impl Deformer {
         reused.unwrap_or_else(|| Scratch {
             ws: self.binding.workspace(),
             gradients: Vec::new(),
-            sculpted: Vec::new(),
             unposed: vec![None; self.binding.n_curvenets()],
-            skinned: Vec::new(),
-            pools: Vec::new(),
-            cage: CoupledWorkspace::default(),
+            rig: RigScratch::default(),
         })
     }
 

@@ -46,8 +46,8 @@ pub use binding::cut::{
 };
 pub use binding::{BindOptions, BindStats, BindTimings, BindWarning, Binding, Surface};
 pub use deformer::{
-    BatchError, BlendShapeMode, CageInput, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
-    DeformerOptions, FlexibleStats, Frame, FrameOut, MAX_BATCH_FRAMES, MeshInput, Rig,
+    BatchError, BlendShapeMode, CageInput, CagePose, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
+    DeformerOptions, FlexibleStats, Frame, FrameOut, FramePose, MAX_BATCH_FRAMES, MeshInput, Rig,
 };
 pub use solve::{FrameInput, Workspace};
 

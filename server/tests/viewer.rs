@@ -79,7 +79,28 @@ fn shifted(pool: &[[f64; 3]], d: [f64; 3]) -> Vec<[f64; 3]> {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_page_is_self_contained_and_open_without_the_token() {
     let app = app(state(Some("secret")));
-    let modules = ["main", "api", "math", "camera", "gl", "highlight", "adjust"];
+    let modules = [
+        "main",
+        "dom",
+        "state",
+        "context",
+        "api",
+        "math",
+        "camera",
+        "shapes",
+        "gl",
+        "scene",
+        "render",
+        "pick",
+        "frames",
+        "panel",
+        "loading",
+        "knots",
+        "live",
+        "input",
+        "highlight",
+        "adjust",
+    ];
     let mut assets = vec![("/viewer".to_string(), "text/html"), ("/viewer/viewer.css".to_string(), "text/css")];
     assets.extend(modules.iter().map(|m| (format!("/viewer/js/{m}.js"), "text/javascript")));
     for (path, kind) in &assets {

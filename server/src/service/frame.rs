@@ -261,7 +261,7 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
 impl Frame {
     /// The core's frame input over this frame's arrays (`posed`: its posed
     /// pools as slices), as [`solve`] and [`solve_group`] pass it.
-    fn core<'a>(&'a self, posed: &'a [Option<&'a [[f64; 3]]>]) -> curvenet_core::Frame<'a> {
+    pub(crate) fn core<'a>(&'a self, posed: &'a [Option<&'a [[f64; 3]]>]) -> curvenet_core::Frame<'a> {
         curvenet_core::Frame {
             posed,
             rest: self.rest.as_deref(),

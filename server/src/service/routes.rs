@@ -2,7 +2,7 @@
 //! panics, closing connections whose request body went unread, the
 //! declared-length check, the token, the request metrics). The
 //! handlers live in one file per resource (bindings.rs, frames.rs,
-//! batches.rs, deform.rs, bake.rs, operations.rs, viewer.rs); the steps they
+//! batches.rs, deform.rs, bake.rs, operations.rs, viewer/); the steps they
 //! share are extractors (extract.rs) and the one solve helper (pool.rs).
 
 use std::sync::Arc;

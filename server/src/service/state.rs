@@ -51,7 +51,7 @@ pub(crate) struct Inner {
     /// Requests waiting in line for a solve permit.
     pub waiting: std::sync::atomic::AtomicUsize,
     /// Stages opened in the viewer (`serve --open-stage`), by index.
-    pub viewer_stages: std::sync::RwLock<Vec<Arc<crate::viewer::ViewerStage>>>,
+    pub viewer_stages: std::sync::RwLock<Vec<Arc<crate::viewer::stage::ViewerStage>>>,
 }
 
 impl AppState {
