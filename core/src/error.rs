@@ -1,6 +1,9 @@
 //! The one error type of the core. Every variant names the offending element
 //! (face, vertex, spline, control point) so a user can fix the input from the
-//! message alone.
+//! message alone. The skinning and cage errors live here too, below the
+//! modules that raise them, so no module this file names imports it back.
+
+use crate::cage::limits::{MAX_CAGE_VERTICES, MAX_PHI_BYTES};
 
 /// Errors raised by curvenet-core. User mistakes (bad input) and internal
 /// failures are separate variants; the latter should never happen.
@@ -181,15 +184,136 @@ pub enum Error {
     InvalidParameter { what: &'static str, value: f64 },
     /// Skinning input (influences, transforms, spline weights) refused; names the element.
     #[error(transparent)]
-    Skinning(crate::skinning::SkinningError),
+    Skinning(SkinningError),
     /// Cage input (the cage's triangles and points, a frame's cage arrays)
     /// refused, or a coupled cage-and-skeleton rig that cannot be built;
     /// names the face, edge, vertex or field.
     #[error(transparent)]
-    Cage(crate::cage::CageError),
+    Cage(CageError),
     /// The caller cancelled the computation ([`crate::Cancel`]) during `stage`.
     #[error("cancelled during {stage}")]
     Cancelled { stage: &'static str },
+}
+
+/// Why skinning input was refused. Every variant names the element.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SkinningError {
+    /// `element_size` is zero.
+    #[error("the influences' element size must be at least 1")]
+    ZeroElementSize,
+    /// The influence arrays do not hold `element_size` entries per point.
+    #[error("{what} has {got} entries, expected {expected} ({points} points x element size {element_size})")]
+    InfluenceCount { what: &'static str, got: usize, expected: usize, points: usize, element_size: usize },
+    /// A joint index is negative or past the last joint.
+    #[error("point {point}, influence {influence}: joint index {joint} is outside 0..{n_joints}")]
+    JointOutOfRange { point: usize, influence: usize, joint: i64, n_joints: usize },
+    /// A weight is NaN or infinite.
+    #[error("point {point}, influence {influence}: weight {weight} is not finite")]
+    NonFiniteWeight { point: usize, influence: usize, weight: f64 },
+    /// A transform has a non-finite entry.
+    #[error("{what} {index} has a non-finite entry")]
+    NonFiniteTransform { what: &'static str, index: usize },
+    /// A transform that must be affine has a last column other than (0, 0, 0, 1).
+    #[error("{what} {index} is not affine (its last column is {column:?}, expected [0, 0, 0, 1])")]
+    NotAffine { what: &'static str, index: usize, column: [f64; 4] },
+    /// A bind transform cannot be inverted.
+    #[error("the bind transform of joint {joint} is singular")]
+    SingularBindTransform { joint: usize },
+    /// A joint's parent is not an earlier joint (UsdSkel orders parents first).
+    #[error("joint {joint} has parent {parent}, which does not come before it")]
+    BadParent { joint: usize, parent: usize },
+    /// The number of transforms does not match the skeleton.
+    #[error("{what}: expected {expected} joints, got {got}")]
+    JointCount { what: &'static str, expected: usize, got: usize },
+    /// A curvenet control point that no weight reaches (all its weights are zero).
+    #[error("{what} {index} has no joint weight (all its weights are zero)")]
+    Unweighted { what: &'static str, index: usize },
+    /// The skinned tangents of an angle-constrained knot are parallel, so the
+    /// rotation axis of the constraint is undefined.
+    #[error("the skinned tangents at knot {knot} (control point) are parallel: its angle constraint has no axis")]
+    DegenerateAngleAxis { knot: u32 },
+}
+
+impl From<SkinningError> for Error {
+    fn from(e: SkinningError) -> Self {
+        Error::Skinning(e)
+    }
+}
+
+/// Why cage input was refused. Every variant names the element.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CageError {
+    /// Fewer than 4 points or no triangles: no closed cage.
+    #[error("a cage needs at least 4 vertices and some triangles, got {vertices} vertices and {triangles} triangles")]
+    TooSmall { vertices: usize, triangles: usize },
+    /// A triangle corner refers past the last cage point.
+    #[error("cage triangle {face}, corner {corner}: vertex {vertex} is outside 0..{n_vertices}")]
+    IndexOutOfRange { face: usize, corner: usize, vertex: u32, n_vertices: usize },
+    /// A triangle repeats a vertex or has zero area.
+    #[error("cage triangle {face} (vertices {vertices:?}) is degenerate: a repeated vertex or zero area")]
+    DegenerateFace { face: usize, vertices: [u32; 3] },
+    /// A NaN or infinite coordinate.
+    #[error("{what} {index} has a non-finite coordinate {value:?}")]
+    NonFinite { what: &'static str, index: usize, value: [f64; 3] },
+    /// A cage vertex no triangle uses (its coordinates would all be zero).
+    #[error("cage vertex {vertex} is used by no triangle")]
+    UnusedVertex { vertex: usize },
+    /// An edge with a single triangle: the cage is open there.
+    #[error("cage edge ({a}, {b}) has only triangle {face}: the cage is not closed")]
+    OpenEdge { a: u32, b: u32, face: usize },
+    /// An edge shared by more than two triangles.
+    #[error("cage edge ({a}, {b}) is shared by triangles {faces:?}; a cage edge must have exactly two")]
+    NonManifoldEdge { a: u32, b: u32, faces: Vec<u32> },
+    /// Two triangles run their shared edge the same way: one is flipped.
+    #[error("cage triangle {face} is flipped: it runs edge ({a}, {b}) the same way as triangle {neighbour}")]
+    FlippedFace { face: usize, neighbour: usize, a: u32, b: u32 },
+    /// Consistently oriented but with inward normals (negative volume).
+    #[error(
+        "the cage is inside out: its signed volume is {volume:e} (triangles must wind counter-clockwise seen from outside)"
+    )]
+    InsideOut { volume: f64 },
+    /// The cage is too fine for dense coordinates ([`MAX_CAGE_VERTICES`], [`MAX_PHI_BYTES`]).
+    #[error(
+        "a cage of {cage_vertices} vertices over {points} points needs {bytes} bytes of mean value coordinates; a cage \
+         is a coarse control mesh (at most {max_vertices} vertices and {max_bytes} bytes of coordinates)",
+        max_vertices = MAX_CAGE_VERTICES,
+        max_bytes = MAX_PHI_BYTES
+    )]
+    TooLarge { points: usize, cage_vertices: usize, bytes: usize },
+    /// A point lies outside the cage (winding number below ½).
+    #[error(
+        "point {point} ({position:?}) is outside the cage ({outside} points are): a cage must enclose every point it deforms"
+    )]
+    NotEnclosing { point: usize, position: [f64; 3], outside: usize },
+    /// An array has the wrong length.
+    #[error("{what}: expected {expected} entries, got {got}")]
+    Count { what: &'static str, expected: usize, got: usize },
+    /// The MaxVol square system is singular (the cage's coordinates of the
+    /// points do not span every cage vertex: some cage vertex influences no point).
+    #[error(
+        "the MaxVol system of the cage is singular (condition number {condition:e}): cage vertex {vertex} influences the points too little"
+    )]
+    SingularMaxVol { vertex: usize, condition: f64 },
+    /// The CageRev system (Eq. 19) is singular at this pose.
+    #[error("the reverse cage system (CageRev) is singular at this pose (pivot {pivot})")]
+    SingularCageRev { pivot: usize },
+    /// A joint no skin weight reaches, so SkelUp cannot place it.
+    #[error("joint {joint} has no localised skin weight: SkelUp cannot relocate it")]
+    UnlocalizedJoint { joint: usize },
+    /// The maximum-entropy projection of a joint's coordinates (Eq. 11) did not converge.
+    #[error("the barycentric coordinates of joint {joint} (Eq. 11) did not converge (residual {residual:e})")]
+    JointCoordinates { joint: usize, residual: f64 },
+    /// The rig is missing something the coupling needs.
+    #[error("{what}")]
+    Missing { what: &'static str },
+}
+
+impl From<CageError> for Error {
+    fn from(e: CageError) -> Self {
+        Error::Cage(e)
+    }
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -48,7 +48,9 @@ use rustc_hash::FxHashMap;
 use super::CageError;
 use super::mvc::Mvc;
 use crate::error::Result;
-use crate::skinning::{DualQuat, Influences, Mat4, transform_point};
+use crate::skinning::dqs::DualQuat;
+use crate::skinning::influences::{Influences, check_skinning_input};
+use crate::skinning::transform::{Mat4, transform_point};
 
 /// The kernel width `σ` of the weight similarity (Le and Hodgins 2016).
 pub const COR_SIGMA: f64 = 0.1;
@@ -303,13 +305,13 @@ pub fn skin_points_cor(
     transforms: &[Mat4],
     out: &mut [[f64; 3]],
 ) -> Result<()> {
-    crate::skinning::check_skinning_input(points, influences, transforms, out)?;
+    check_skinning_input(points, influences, transforms, out)?;
     if centers.len() != points.len() {
         return Err(CageError::Count { what: "centres of rotation", expected: points.len(), got: centers.len() }.into());
     }
     let parts: Vec<(DualQuat, DMat3)> = transforms.iter().map(split).collect();
     let has_scale = parts.iter().any(|(_, s)| {
-        (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > crate::skinning::SCALE_TOLERANCE)
+        (*s - DMat3::IDENTITY).to_cols_array().iter().any(|d| d.abs() > crate::skinning::dqs::SCALE_TOLERANCE)
     });
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, block)| {
         for (k, o) in block.iter_mut().enumerate() {

@@ -49,6 +49,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::CageError;
+use super::limits::{MAX_CAGE_VERTICES, MAX_PHI_BYTES};
 use crate::error::Result;
 
 /// Below this, a point is on a cage vertex (distances, relative to the
@@ -287,16 +288,6 @@ pub struct Mvc {
     n_points: usize,
     phi: Vec<f64>,
 }
-
-/// The most cage vertices a cage may have: a cage is a coarse control
-/// mesh (the paper's have tens to a few hundred vertices); a cage of
-/// thousands is a mesh given where a cage was meant (e.g. the character
-/// itself), whose dense `Φ` would not fit in memory.
-pub const MAX_CAGE_VERTICES: usize = 4096;
-
-/// The most memory `Φ` (points × cage vertices × 8 bytes) may take: 2 GiB,
-/// a 376k-vertex character with a 700-vertex cage.
-pub const MAX_PHI_BYTES: usize = 2 << 30;
 
 impl Mvc {
     /// Validates the cage ([`Cage::new`]) and computes the coordinates of

@@ -23,7 +23,8 @@
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
-use super::{Influences, Mat4, PAR_CHUNK, check_skinning_input, transform_point};
+use super::influences::{Influences, PAR_CHUNK, check_skinning_input};
+use super::transform::{Mat4, transform_point};
 use crate::error::Result;
 
 /// A scale entry further than this from the identity's turns on the

@@ -2,7 +2,8 @@
 
 use rayon::prelude::*;
 
-use super::{Influences, Mat4, PAR_CHUNK, check_skinning_input, transform_point};
+use super::influences::{Influences, PAR_CHUNK, check_skinning_input};
+use super::transform::{Mat4, transform_point};
 use crate::error::Result;
 
 /// Linear blend skinning (Liu et al. 2015, Eq. 1; UsdSkel's `classicLinear`):

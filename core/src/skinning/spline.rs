@@ -91,8 +91,10 @@ use faer::Mat;
 use faer::linalg::solvers::Solve;
 use glam::{DMat3, DVec3};
 
+use super::transform::{Mat4, transform_point};
+use super::weights::WeightField;
 use super::weights::normalize;
-use super::{Mat4, SkinningError, WeightField, transform_point};
+use crate::error::SkinningError;
 use crate::error::{Error, Result};
 
 /// Sine of the largest angle between `u_a` and `−u_b` detected as G¹.
@@ -322,7 +324,7 @@ impl SplineSkinning {
         options: &SplineSkinningOptions,
     ) -> Result<Self> {
         let curvenet = crate::Curvenet::new(splines, pool)?;
-        super::check_affine(geom_bind, "geomBindTransform", 0)?;
+        super::transform::check_affine(geom_bind, "geomBindTransform", 0)?;
         if options.quadrature_intervals == 0 || options.distance_samples == 0 {
             return Err(Error::InvalidParameter { what: "spline skinning quadrature and sample counts", value: 0.0 });
         }

@@ -24,9 +24,10 @@
 //!
 //! Weights are sparse `(joint, weight)` lists; a joint appears at most once.
 
-use super::{Influences, SkinningError};
+use super::influences::Influences;
 use crate::closest_point::ClosestPointBvh;
 use crate::error::Result;
+use crate::error::SkinningError;
 
 /// Joint weights of the points of a curvenet (see the module docs).
 pub trait WeightField: Sync {
