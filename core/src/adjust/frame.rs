@@ -1,12 +1,11 @@
-//! The adjuster inside a binding's frame: orientation plans built with the
-//! binding, and the per-frame step [`crate::Binding::deform`] runs between
+//! The adjuster inside a binding's frame (the orientation plans are built
+//! with the binding, `binding/knots.rs`): the per-frame step [`crate::Binding::deform`] runs between
 //! posing the curvenet and sampling it.
-
-use glam::DVec3;
 
 use super::apply::{Adjustment, apply_adjustment, check_adjustment};
 use super::orientations::OrientationPlan;
-use crate::binding::{Binding, KnotBinding, surface::Surface};
+use crate::binding::Binding;
+use crate::binding::knots::triangle_normal;
 use crate::curvenet::{CurvenetLayout, Mat3};
 use crate::error::{Error, Result};
 
@@ -15,29 +14,6 @@ type PoolAndSamples = (Vec<[f64; 3]>, Vec<[f64; 3]>);
 
 /// No adjustment claims this knot (see [`Binding::check_adjustments_with`]).
 pub(crate) const UNCLAIMED: u32 = u32::MAX;
-
-/// The orientation plan of every bound curvenet: the neutral normal of a
-/// knot is the normal of the surface triangle it is bound to, in the
-/// projection pose (the posed normal is the same triangle's in the frame's
-/// rest pose, [`Binding::knot_normal`]).
-pub(crate) fn orientation_plans(
-    surface: &Surface,
-    layouts: &[&CurvenetLayout],
-    knots: &[Vec<KnotBinding>],
-) -> Result<Vec<OrientationPlan>> {
-    layouts
-        .iter()
-        .zip(knots)
-        .map(|(layout, bound)| {
-            OrientationPlan::new(layout, |p| triangle_normal(surface, bound[p as usize].tri, &surface.points))
-        })
-        .collect()
-}
-
-fn triangle_normal<P: Copy + Into<DVec3>>(surface: &Surface, tri: u32, points: &[P]) -> [f64; 3] {
-    let [a, b, c] = surface.triangle_points(tri, points);
-    (b - a).cross(c - a).normalize_or_zero().to_array()
-}
 
 impl Binding {
     /// The knot-orientation plan of curvenet `k`.

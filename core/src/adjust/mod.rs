@@ -116,4 +116,4 @@ pub use apply::{Adjustment, Rotate, apply_adjustment, check_adjustment, knot_tan
 pub use fit::{DEGENERATE_FIT, blend_rotations, fit_rotation};
 pub use orientations::{NORMAL_ALONG_TANGENT, OrientationPlan};
 
-pub(crate) use frame::{UNCLAIMED, orientation_plans};
+pub(crate) use frame::UNCLAIMED;

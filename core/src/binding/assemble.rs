@@ -10,8 +10,8 @@ use crate::polygon_laplacian::{PolygonScratch, polygon_laplacian};
 use crate::sparse::Csr;
 
 use super::cut::CutMesh;
+use super::parts::{BindWarning, Corner};
 use super::surface::Surface;
-use super::{BindWarning, Corner};
 use crate::ids::MeshVertex;
 
 /// The assembled Laplacian.

@@ -14,7 +14,8 @@ use crate::ids::{ConstraintRow, MeshVertex, Unknown};
 
 use super::cut::{CROSSING, CurvePoint, CutMesh, MESH_VERTEX, SAMPLE};
 use super::join::{HEAD, Joined, TAIL};
-use super::{BindWarning, Corner, CrossingRow, Surface};
+use super::parts::{BindWarning, Corner, CrossingRow};
+use super::surface::Surface;
 
 /// The corners' classification.
 #[derive(Debug)]

@@ -12,7 +12,8 @@ use crate::error::{Error, Result};
 use super::cut::{CutMesh, Touch};
 use super::join::Joined;
 use super::locate::Location;
-use super::{BindWarning, Surface};
+use super::parts::BindWarning;
+use super::surface::Surface;
 
 pub(crate) fn check_drawing(
     surface: &Surface,

@@ -8,7 +8,7 @@ use rustc_hash::FxHashMap as HashMap;
 use crate::curvenet::{CurvenetLayout, Side};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
 
-use super::NetRange;
+use super::parts::NetRange;
 
 /// Which end of a segment a slot or a cut-vertex is.
 pub(crate) const TAIL: u8 = 0;

@@ -15,7 +15,8 @@ use crate::ids::MeshVertex;
 use super::classify::Classified;
 use super::cut::CutMesh;
 use super::join::Joined;
-use super::{Corner, KnotBinding, Surface, triangle_frame};
+use super::parts::{Corner, KnotBinding, triangle_frame};
+use super::surface::Surface;
 
 /// The right-hand-side maps.
 #[derive(Debug)]
