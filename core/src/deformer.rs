@@ -46,7 +46,8 @@ use crate::cage::{CageFrame, CageRevApproximation, CentersOfRotation, CoupledRig
 use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
-use crate::skinning::{Mat4, Skin, SkinningMethod, SplineSkinning};
+use crate::rig::Rig;
+use crate::skinning::{Mat4, SkinningMethod};
 use crate::solve::{FrameInput, HasWorkspace, Lanes, Workspace};
 
 /// A mesh in its projection pose (the pose the curvenets were drawn on):
@@ -96,28 +97,6 @@ pub struct DeformerInput<'a> {
     /// with [`Frame::rest_cage`] and [`Frame::posed_cage_offsets`].
     pub cage: Option<CageInput<'a>>,
     pub options: DeformerOptions,
-}
-
-/// The rig under the curvenets ([`crate::skinning`], UsdSkel's semantics):
-/// the mesh's skin, whose skinning of the mesh's points is a frame's rest
-/// pose, and the spline skinning (Liu et al. 2015) of the curvenets that
-/// follow the skeleton.
-#[derive(Debug, Clone)]
-pub struct Rig {
-    /// The mesh's influences, `geomBindTransform` and skinning method.
-    pub skin: Skin,
-    /// One entry per curvenet (the order of [`DeformerInput::curvenets`]):
-    /// its spline skinning, `None` for a curvenet that does not follow the
-    /// skeleton (it takes the frame's posed pool, else tracks the rest pose).
-    pub curvenets: Vec<Option<SplineSkinning>>,
-    /// Up to this many G¹-flexible iterations per spline-skinned pose
-    /// ([`SplineSkinning::pose_flexible`]); 0: the fixed-ratio fit
-    /// ([`SplineSkinning::pose`]).
-    pub flexible_iterations: usize,
-    /// The skeleton (hierarchy and bind transforms), which a cage coupled
-    /// with the rig needs to relocate the joints (SkelUp); `None` for a rig
-    /// without a cage.
-    pub skeleton: Option<crate::skinning::Skeleton>,
 }
 
 /// G¹-flexible spline skinning done over a deformer's frames so far.

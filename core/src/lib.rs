@@ -29,6 +29,7 @@ pub mod heap;
 pub mod ids;
 pub mod mesh;
 pub mod polygon_laplacian;
+pub mod rig;
 pub mod simd;
 pub mod skinning;
 pub mod solve;
@@ -47,7 +48,7 @@ pub use binding::cut::{
 pub use binding::{BindOptions, BindStats, BindTimings, BindWarning, Binding, Surface};
 pub use deformer::{
     BatchError, BlendShapeMode, CageInput, CagePose, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
-    DeformerOptions, FlexibleStats, Frame, FrameOut, FramePose, MAX_BATCH_FRAMES, MeshInput, Rig,
+    DeformerOptions, FlexibleStats, Frame, FrameOut, FramePose, MAX_BATCH_FRAMES, MeshInput,
 };
 pub use solve::{FrameInput, Workspace};
 
@@ -60,6 +61,9 @@ pub use mesh::{PolyMesh, bounding_box_diagonal};
 
 // Rig layers underneath: UsdSkel and spline skinning, coupled cages.
 pub use cage::{CageError, CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, fan_triangles};
+pub use rig::{
+    InfluenceArrays, NetSkinning, Rig, RigCurvenet, RigError, RigInput, RigPart, RigReport, WEIGHT_SUM_TOLERANCE,
+};
 pub use skinning::{
     ControlPointWeights, DERIVED_WEIGHT_SAMPLES, IDENTITY as MAT4_IDENTITY, Influences, JunctionKind, Mat4, Skeleton,
     Skin, SkinningMethod, SplineSkinning, SplineSkinningOptions, SurfaceWeights, check_affine, inverse as mat4_inverse,

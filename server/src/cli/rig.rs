@@ -1,6 +1,7 @@
 //! The rig under the curvenets of one mesh, as the bake and `inspect` read
 //! it: the mesh's UsdSkel skin and the spline skinning of the curvenets that
-//! ask for it, built into a [`curvenet_core::Rig`] that
+//! ask for it, read from the stage and built by [`curvenet_core::Rig::build`]
+//! (the one place a rig is built; the service calls it too) into a rig that
 //! [`curvenet_core::Deformer`] runs per frame (the skinned rest pose, the
 //! spline-skinned posed pools).
 //!
@@ -8,21 +9,12 @@
 //! ([`JointReader::read_transforms`], on the stage's thread); everything else
 //! is core math inside `Deformer::frame`, safe to run on any thread.
 
-use curvenet_core::Rig;
-use curvenet_core::{
-    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, MAT4_IDENTITY, Mat4, Skeleton, Skin, SkinningMethod,
-    SplineSkinning, SplineSkinningOptions, SurfaceWeights, mat4_mul,
-};
-
-use curvenet_core::{ClosestPointBvh, PolyMesh};
+use curvenet_core::{InfluenceArrays, NetSkinning, Rig, RigCurvenet, RigError, RigInput, RigPart};
+use curvenet_core::{MAT4_IDENTITY, Mat4, Skeleton, SkinningMethod, mat4_mul};
 use curvenet_schema::usd::{CurvenetSkinning, CurvenetSkinningMethod, SkinRig, Stage};
 use curvenet_schema::{CurvenetData, MeshData};
 
 use super::{CliError, CliResult};
-
-/// Skin weights of a point that sum to 1 within this are rescaled to sum
-/// to 1 exactly (float rounding); others are skinned as authored, with a warning.
-pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-4;
 
 /// How one curvenet of the mesh follows the skeleton (its spline skinning
 /// is the matching entry of [`Rig::curvenets`]).
@@ -76,57 +68,16 @@ impl MeshRig {
             }
             return Ok(None);
         };
-        let n_joints = rig.joints.len();
-        let skeleton = Skeleton::new(&rig.parents, &rig.bind_transforms).map_err(core(rig.skeleton.clone()))?;
-        let n = mesh.projection_points.len();
-        let mut influences = Influences::new(n, rig.element_size, &rig.joint_indices, &rig.joint_weights, n_joints)
-            .map_err(core(format!("{} (primvars:skel:jointIndices, jointWeights)", mesh.path)))?;
-        let unnormalized = influences.renormalize(WEIGHT_SUM_TOLERANCE);
-        let t0 = std::time::Instant::now();
-        let mut surface: Option<ClosestPointBvh> = None;
-        let mut net_rigs = Vec::with_capacity(nets.len());
-        let mut splines = Vec::with_capacity(nets.len());
-        for (net, mode) in nets.iter().zip(modes) {
-            let context = || format!("{} (spline skinning over {})", net.path, mesh.path);
-            let options = SplineSkinningOptions::default();
-            let (spline, net_rig) = match mode {
-                CurvenetSkinning::None => (None, None),
+        let skinnings: Vec<NetSkinning<'_>> = modes
+            .iter()
+            .map(|mode| match mode {
+                CurvenetSkinning::None => NetSkinning::None,
                 CurvenetSkinning::Weights { element_size, joint_indices, joint_weights } => {
-                    let cp = Influences::new(net.pool.len(), element_size, &joint_indices, &joint_weights, n_joints)
-                        .map_err(core(format!("{} (primvars:curvenet:skel:jointIndices, jointWeights)", net.path)))?;
-                    let field = ControlPointWeights::new(cp);
-                    let spline =
-                        SplineSkinning::new(&net.pool, &net.splines, &field, &rig.geom_bind_transform, &options)
-                            .map_err(core(context()))?;
-                    (Some(spline), Some(NetRig { mode: "weights", weight_deviation: None }))
+                    NetSkinning::Weights(InfluenceArrays { element_size: *element_size, joint_indices, joint_weights })
                 }
-                CurvenetSkinning::FromMesh => {
-                    if surface.is_none() {
-                        let topo = PolyMesh::new(&mesh.face_vertex_counts, &mesh.face_vertex_indices, n)
-                            .map_err(core(mesh.path.clone()))?;
-                        surface = Some(
-                            ClosestPointBvh::new(&topo, &mesh.projection_points).map_err(core(mesh.path.clone()))?,
-                        );
-                    }
-                    let mesh_weights =
-                        SurfaceWeights::new(surface.as_ref().expect("built"), &influences).map_err(core(context()))?;
-                    let (field, deviation) = ControlPointWeights::from_surface(
-                        &net.pool,
-                        &net.splines,
-                        &mesh_weights,
-                        DERIVED_WEIGHT_SAMPLES,
-                    )
-                    .map_err(core(context()))?;
-                    let spline =
-                        SplineSkinning::new(&net.pool, &net.splines, &field, &rig.geom_bind_transform, &options)
-                            .map_err(core(context()))?;
-                    (Some(spline), Some(NetRig { mode: "mesh", weight_deviation: Some(deviation) }))
-                }
-            };
-            splines.push(spline);
-            net_rigs.push(net_rig);
-        }
-        let spline_ms = t0.elapsed().as_secs_f64() * 1e3;
+                CurvenetSkinning::FromMesh => NetSkinning::FromMesh,
+            })
+            .collect();
         // `curvenet:skinningMethod` (schema/README.md) overrides UsdSkel's token:
         // it can name centres of rotation, which UsdSkel's tokens cannot.
         let method = match rig.curvenet_method {
@@ -135,14 +86,56 @@ impl MeshRig {
             Some(CurvenetSkinningMethod::DualQuaternion) => SkinningMethod::DualQuaternion,
             Some(CurvenetSkinningMethod::CentersOfRotation) => SkinningMethod::CentersOfRotation,
         };
-        let skin = Skin::new(influences, rig.geom_bind_transform, method).map_err(core(mesh.path.clone()))?;
-        Ok(Some(Self {
+        let input = RigInput {
+            face_vertex_counts: &mesh.face_vertex_counts,
+            face_vertex_indices: &mesh.face_vertex_indices,
+            projection_points: &mesh.projection_points,
+            influences: InfluenceArrays {
+                element_size: rig.element_size,
+                joint_indices: &rig.joint_indices,
+                joint_weights: &rig.joint_weights,
+            },
+            n_joints: rig.joints.len(),
+            geom_bind_transform: rig.geom_bind_transform,
+            method,
             // The skeleton goes with the rig: a cage coupled with it relocates the joints (SkelUp).
-            skinning: Rig { skin, curvenets: splines, flexible_iterations: flexible, skeleton: Some(skeleton.clone()) },
+            skeleton: Some((&rig.parents, &rig.bind_transforms)),
+            curvenets: nets
+                .iter()
+                .zip(&skinnings)
+                .map(|(net, &skinning)| RigCurvenet { pool: &net.pool, splines: &net.splines, skinning })
+                .collect(),
+            flexible_iterations: flexible,
+        };
+        let (skinning, report) = Rig::build(&input).map_err(|RigError { part, source }| {
+            let context = match part {
+                RigPart::Skeleton => rig.skeleton.clone(),
+                RigPart::Influences => format!("{} (primvars:skel:jointIndices, jointWeights)", mesh.path),
+                RigPart::Mesh | RigPart::Skin => mesh.path.clone(),
+                RigPart::CurvenetWeights(k) => {
+                    format!("{} (primvars:curvenet:skel:jointIndices, jointWeights)", nets[k].path)
+                }
+                RigPart::CurvenetSkinning(k) => format!("{} (spline skinning over {})", nets[k].path, mesh.path),
+            };
+            CliError::Core { context, source }
+        })?;
+        let skeleton =
+            skinning.skeleton.clone().ok_or_else(|| CliError::Input(format!("{}: no skeleton", rig.skeleton)))?;
+        let net_rigs = skinnings
+            .iter()
+            .zip(&report.weight_deviation)
+            .map(|(s, &weight_deviation)| match s {
+                NetSkinning::None => None,
+                NetSkinning::Weights(_) => Some(NetRig { mode: "weights", weight_deviation: None }),
+                NetSkinning::FromMesh => Some(NetRig { mode: "mesh", weight_deviation }),
+            })
+            .collect();
+        Ok(Some(Self {
+            skinning,
             joints: JointReader { rig, skeleton },
-            unnormalized,
+            unnormalized: report.unnormalized,
             nets: net_rigs,
-            spline_ms,
+            spline_ms: report.spline_ms,
         }))
     }
 }

@@ -5,13 +5,9 @@
 //! and index it refers to, and the details name them by field.
 
 use curvenet_core::BlendShape;
-use curvenet_core::{Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions, PolyMesh};
-use curvenet_core::{CageInput, Rig};
-use curvenet_core::{ClosestPointBvh, MAT4_IDENTITY};
-use curvenet_core::{
-    ControlPointWeights, DERIVED_WEIGHT_SAMPLES, Influences, Skeleton, Skin, SkinningMethod, SplineSkinning,
-    SplineSkinningOptions, SurfaceWeights,
-};
+use curvenet_core::{Binding, Cancel, CurvenetInput, Deformer, DeformerInput, DeformerOptions};
+use curvenet_core::{CageInput, MAT4_IDENTITY, SkinningMethod};
+use curvenet_core::{InfluenceArrays, NetSkinning, Rig, RigCurvenet, RigError, RigInput, RigPart};
 use curvenet_schema::wire::{
     BindingRequest, BindingResponse, BindingStats, BindingTimings, CageStats, CurvenetSkinSpec, SkinMethod, SkinSpec,
     Warning,
@@ -121,16 +117,11 @@ pub fn build(
     })
 }
 
-/// Skin weights of a point that sum to 1 within this are rescaled to sum to
-/// 1 exactly (float rounding), as `curvenet bake` does (cli/rig.rs).
-pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-4;
-
 /// The rig of `req` (its `skin`): the mesh's influences and skin, and the
-/// spline skinning of the curvenets that ask for it, as `curvenet bake`
-/// builds them from UsdSkel (cli/rig.rs). Errors name the field.
+/// spline skinning of the curvenets that ask for it, built by
+/// [`Rig::build`] as `curvenet bake` builds it from UsdSkel (cli/rig.rs).
+/// Errors name the field.
 fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError> {
-    let bind = |what: String| move |e: curvenet_core::Error| ServiceError::core(e, Phase::Bind).context(&what);
-    let n = req.projection_points.len();
     let n_joints = skin.joints as usize;
     if !skin.curvenets.is_empty() && skin.curvenets.len() != req.curvenets.len() {
         return Err(ServiceError::new(
@@ -147,60 +138,58 @@ fn build_rig(req: &BindingRequest, skin: &SkinSpec) -> Result<Rig, ServiceError>
             d.got = Some(skin.curvenets.len());
         }));
     }
-    let mut influences =
-        Influences::new(n, skin.element_size as usize, &skin.joint_indices, &skin.joint_weights, n_joints)
-            .map_err(bind("skin".into()))?;
-    influences.renormalize(WEIGHT_SUM_TOLERANCE);
-    let geom_bind = skin.geom_bind_transform.unwrap_or(MAT4_IDENTITY);
-    let options = SplineSkinningOptions::default();
-    let mut surface: Option<ClosestPointBvh> = None;
-    let mut splines = Vec::with_capacity(req.curvenets.len());
-    for (k, net) in req.curvenets.iter().enumerate() {
-        let context = format!("skin.curvenets[{k}]");
-        let field = match skin.curvenets.get(k) {
-            None | Some(CurvenetSkinSpec::None) => {
-                splines.push(None);
-                continue;
-            }
-            Some(CurvenetSkinSpec::Weights { element_size, joint_indices, joint_weights }) => {
-                let cp =
-                    Influences::new(net.pool.len(), *element_size as usize, joint_indices, joint_weights, n_joints)
-                        .map_err(bind(context.clone()))?;
-                ControlPointWeights::new(cp)
-            }
-            Some(CurvenetSkinSpec::Mesh) => {
-                if surface.is_none() {
-                    let topo = PolyMesh::new(&req.face_vertex_counts, &req.face_vertex_indices, n)
-                        .map_err(bind("mesh".into()))?;
-                    surface = Some(ClosestPointBvh::new(&topo, &req.projection_points).map_err(bind("mesh".into()))?);
-                }
-                let Some(bvh) = surface.as_ref() else {
-                    return Err(ServiceError::internal("the surface of the mesh was not built"));
-                };
-                let weights = SurfaceWeights::new(bvh, &influences).map_err(bind(context.clone()))?;
-                ControlPointWeights::from_surface(&net.pool, &net.splines, &weights, DERIVED_WEIGHT_SAMPLES)
-                    .map_err(bind(context.clone()))?
-                    .0
-            }
-        };
-        let spline = SplineSkinning::new(&net.pool, &net.splines, &field, &geom_bind, &options)
-            .map_err(bind(context.clone()))?;
-        splines.push(Some(spline));
-    }
     let method = match skin.method {
         SkinMethod::ClassicLinear => SkinningMethod::ClassicLinear,
         SkinMethod::DualQuaternion => SkinningMethod::DualQuaternion,
         SkinMethod::CentersOfRotation => SkinningMethod::CentersOfRotation,
     };
-    let skeleton = match &skin.skeleton {
-        None => None,
-        Some(s) => {
-            let parents: Vec<Option<u32>> = s.parents.iter().map(|&p| u32::try_from(p).ok()).collect();
-            Some(Skeleton::new(&parents, &s.bind_transforms).map_err(bind("skin.skeleton".into()))?)
-        }
+    let parents: Option<Vec<Option<u32>>> =
+        skin.skeleton.as_ref().map(|s| s.parents.iter().map(|&p| u32::try_from(p).ok()).collect());
+    let input = RigInput {
+        face_vertex_counts: &req.face_vertex_counts,
+        face_vertex_indices: &req.face_vertex_indices,
+        projection_points: &req.projection_points,
+        influences: InfluenceArrays {
+            element_size: skin.element_size as usize,
+            joint_indices: &skin.joint_indices,
+            joint_weights: &skin.joint_weights,
+        },
+        n_joints,
+        geom_bind_transform: skin.geom_bind_transform.unwrap_or(MAT4_IDENTITY),
+        method,
+        skeleton: skin.skeleton.as_ref().zip(parents.as_deref()).map(|(s, p)| (p, &s.bind_transforms[..])),
+        curvenets: req
+            .curvenets
+            .iter()
+            .enumerate()
+            .map(|(k, net)| RigCurvenet {
+                pool: &net.pool,
+                splines: &net.splines,
+                skinning: match skin.curvenets.get(k) {
+                    None | Some(CurvenetSkinSpec::None) => NetSkinning::None,
+                    Some(CurvenetSkinSpec::Weights { element_size, joint_indices, joint_weights }) => {
+                        NetSkinning::Weights(InfluenceArrays {
+                            element_size: *element_size as usize,
+                            joint_indices,
+                            joint_weights,
+                        })
+                    }
+                    Some(CurvenetSkinSpec::Mesh) => NetSkinning::FromMesh,
+                },
+            })
+            .collect(),
+        flexible_iterations: skin.flexible_iterations as usize,
     };
-    let skin_core = Skin::new(influences, geom_bind, method).map_err(bind("skin".into()))?;
-    Ok(Rig { skin: skin_core, curvenets: splines, flexible_iterations: skin.flexible_iterations as usize, skeleton })
+    let (rig, _report) = Rig::build(&input).map_err(|RigError { part, source }| {
+        let what = match part {
+            RigPart::Skeleton => "skin.skeleton".to_string(),
+            RigPart::Influences | RigPart::Skin => "skin".to_string(),
+            RigPart::Mesh => "mesh".to_string(),
+            RigPart::CurvenetWeights(k) | RigPart::CurvenetSkinning(k) => format!("skin.curvenets[{k}]"),
+        };
+        ServiceError::core(source, Phase::Bind).context(&what)
+    })?;
+    Ok(rig)
 }
 
 /// Bytes of an entry besides its measured arrays: the entry, its strings
