@@ -168,14 +168,7 @@ async fn agrees(path: &str, frames: usize) -> f32 {
     let server = Served::start(&["--open-stage", path]);
     let client = reqwest::Client::new();
     let base = &server.url;
-    let get = |url: String| {
-        let client = client.clone();
-        async move {
-            let r = client.get(&url).send().await.unwrap();
-            assert_eq!(r.status(), 200, "GET {url}");
-            r.json::<Value>().await.unwrap()
-        }
-    };
+    let get = |url: String| common::get_json(client.clone(), url);
     let listed = get(format!("{base}/v1/viewer/stages")).await;
     let times: Vec<f64> =
         listed["stages"][0]["times"].as_array().unwrap().iter().map(|t| t.as_f64().unwrap()).collect();

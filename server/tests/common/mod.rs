@@ -136,3 +136,11 @@ pub fn copy_shot(root: &std::path::Path) -> std::path::PathBuf {
         .unwrap();
     shot_dir
 }
+
+/// `GET url` answered 200 with JSON: the JSON (panics naming the url otherwise).
+#[allow(dead_code)]
+pub async fn get_json(client: reqwest::Client, url: String) -> serde_json::Value {
+    let r = client.get(&url).send().await.unwrap();
+    assert_eq!(r.status(), 200, "GET {url}");
+    r.json::<serde_json::Value>().await.unwrap()
+}
