@@ -13,31 +13,22 @@
 //! blocks of about 1/16 of the entries each, and orders, analyses and
 //! factors every block on its own, the blocks in parallel on rayon's pool;
 //! L is their block-diagonal concatenation, the same bits on any thread
-//! count. Measured on the bench's meshes (2026-12-02, this 2-core machine,
-//! noisy): the same fill at 22k and 94k (285,435 and 1,640,034 nonzeros)
-//! and 6% less on the 94k hand subdivided 1-to-4 (12,706,811 → 11,925,837:
-//! AMD on the whole matrix is not quite AMD on each piece), and the 94k
-//! factorisation 107-131 → 79-88 ms (three bindings each). METIS (below)
-//! orders the whole matrix.
+//! count. On the bench's meshes the fill is the same at 22k and 94k and a
+//! little less at 376k (AMD on the whole matrix is not quite AMD on each
+//! piece), and the 94k factorisation about a third faster (docs/
+//! performance.md, "Uncoupled blocks, the transport chain, and group
+//! memory in the cache"). METIS (below) orders the whole matrix.
 //!
 //! **Ordering: AMD, measured against METIS.** [`Ordering::Metis`] orders
 //! with METIS nested dissection (`METIS_NodeND` through `metis-sys`, which
 //! compiles METIS's vendored C sources; default options, seed 1, one call
 //! at a time because METIS's random generator is global) and hands the
 //! permutation to faer as a custom ordering; [`Cholesky::new`] uses AMD.
-//! `curvenet bench --orderings` factored the bindings' own matrices with
-//! both, alternating, on 2026-12-01 (this 2-core machine, load 8-9; medians
-//! of 3 factorisations and 20 solves of 9 + 3 columns):
-//!
-//! | matrix | unknowns | L nnz AMD → METIS | ordering + symbolic, ms | whole factorisation, ms | frame's two solves, ms |
-//! |---|---|---|---|---|---|
-//! | hand_22k | 21,995 | 285,753 → 314,074 (1.10×) | 25 → 153 | 35 → 175 (5.0×) | 5.7 / 2.0 and 3.9 / 6.1 (two runs: noise) |
-//! | koala (corpus) | 49,933 | 643,907 → 716,749 (1.11×) | 91 → 440 | 135 → 516 (3.8×) | 16.8 / 11.1 and 8.9 / 12.5 |
-//! | hand_94k | 93,977 | 1,636,059 → 1,680,076 (1.03×) | 146 → 797 | 234 → 896 (3.8×) | 28.2 / 29.7 and 29.5 / 29.1 |
-//!
-//! On every corpus mesh too METIS gave 3-11% *more* fill (1.03-1.11×) and
-//! a 3-9× slower factorisation; with `METIS_OPTION_CCORDER` (components
-//! ordered apart) the same. The curvenet cuts these surfaces into regions
+//! `curvenet bench --orderings` factors the bindings' own matrices with
+//! both (the figures: docs/performance.md, "Ordering, memory, growth and
+//! export"): on the hands and on every corpus mesh METIS gave 3-11% *more*
+//! fill and a 3-9× slower factorisation; with `METIS_OPTION_CCORDER`
+//! (components ordered apart) the same. The curvenet cuts these surfaces into regions
 //! whose unknowns are coupled only inside each region, and the fill of
 //! such a matrix is small and local, which minimum degree already finds;
 //! nested dissection's separators pay off on the plain mesh Laplacians the
@@ -49,7 +40,7 @@
 //! tried: METIS's separators are at least as good as geometric ones on a
 //! surface mesh, and they lose here. A nested dissection by level
 //! structures (George's, AMD on the small parts) was written and measured
-//! in the tenth session and dropped: 1.5× AMD's fill at 376k (README,
+//! and dropped: 1.5× AMD's fill at 376k (docs/performance.md,
 //! "Nested dissection of our own"). Only on the 94k hand subdivided 1-to-4
 //! (375,911 unknowns, the bench's growth row) does METIS win: 12.6M → 9.1M
 //! nonzeros (0.72×), the two solves 376 → 296 ms, but the factorisation
@@ -654,12 +645,10 @@ const GATHER_WIDTH: usize = 16;
 /// order is the order the column-by-column scatter applies them in, so
 /// both give the same bits (tested), and the width decides only the speed.
 ///
-/// Measured on the hands' own factors (both sweeps, the backward one the
-/// same in both; medians of 41, interleaved in one process, 2026-12-02,
-/// two sets of runs): by rows ÷ by columns at 22k 0.59-0.87 for 24 and 72
-/// columns, 0.91-0.92 for 18, 1.0 for 9 and 12, 1.04-1.08 for 3 and 6; at
-/// 94k 0.86-0.97 for 24 and 72, 1.0 for 18, 1.05-1.14 for 9 and 12,
-/// 1.09-1.25 for 3 and 6. Narrow rows gather through one short dependency
+/// Measured on the hands' own factors (docs/performance.md, "Row-gathered
+/// forward sweeps, and what did not pay"): by rows is faster from about 18
+/// columns up (a group's 72 most), even at 9 and 12, and slower for 3 and 6.
+/// Narrow rows gather through one short dependency
 /// chain per entry, which the scatter's independent updates do not have.
 /// A whole group of 8 frames gains less than the sweeps alone (22k: about
 /// 2%, 94k: none measurable): the sweep of a frame's group runs with the

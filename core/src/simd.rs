@@ -14,20 +14,14 @@
 //! alike on every CPU is not verified here.)
 //! FMA would change no byte between machines if every variant used it (the
 //! baseline through the C library's exact `fma`), but it does not pay here:
-//! re-measured on 2026-12-02 with the hands' own factors, both sweeps
-//! interleaved in one process (medians of 41), fused multiply-adds took
-//! 0.92-1.22× the time of the separate multiply and subtract at 22k for 3
-//! to 72 columns (10 of 12 runs above 1) and 0.95-1.06× at 94k. A sweep's
-//! entry is bound by the dependency chain of its accumulator and by loads,
-//! not by arithmetic, and a fused multiply-add has the longer latency. (An earlier note here
-//! had it 1.3× faster at 72 columns; that did not reproduce.)
-//!
-//! Measured with the 22k and 94k hands' own factors on this machine (AMD
-//! EPYC with AVX-512, 2026-12-02, load 1.4; both sweeps, medians of 41):
-//! 9 columns 0.82 → 0.61 (AVX2) → 0.57 ms (AVX-512) at 22k and 6.2 → 4.8
-//! → 4.4 ms at 94k; 3 columns unchanged (0.52 ms, 3.4 ms: bound by the
-//! factor's memory traffic, not arithmetic); 72 columns (8 frames) 6.5 →
-//! 3.7 → 2.6 ms at 22k and 41 → 33 → 22 ms at 94k.
+//! on the hands' own factors fused multiply-adds were no faster than the
+//! separate multiply and subtract (a sweep's entry is bound by the
+//! dependency chain of its accumulator and by loads, not by arithmetic,
+//! and a fused multiply-add has the longer latency). The wider variants pay
+//! for many columns (9 and a group's 72), not for 3 (bound by the factor's
+//! memory traffic). The measurements: docs/performance.md, "Vector units,
+//! unknown numbering, gathered right-hand side" and "Row-gathered forward
+//! sweeps, and what did not pay".
 
 /// The widest vector extension the running CPU has, of those the hot loops
 /// are compiled for.

@@ -4,7 +4,7 @@
 //! when their client leaves, SIGTERM exits within the drain timeout even
 //! mid-binding, slow and idle clients are cut off while others are served,
 //! the cache stays within its bytes (RSS measured), batches are admitted
-//! under contention, and the small things; and (2026-12-03) a frame waits
+//! under contention, and the small things; and a frame waits
 //! for one wave of long batches, not all of them, a batch stops when its
 //! client leaves, and batches in flight stay within `--max-batch-memory`.
 //! Every loop is bounded in count and time.

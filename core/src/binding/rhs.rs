@@ -395,8 +395,8 @@ impl GradientRhs {
 /// rows of `f` they read and the rows of the right-hand side they add to
 /// come nearly in the order the unknowns are numbered (the factor's):
 /// visited in cut-face order, both were scattered over the whole array,
-/// and this loop took 35% of a hand_22k frame in a group of eight that
-/// each carried its own rest pose (`perf`, 2026-12-03). Faces without an
+/// and this loop was the largest part of a group of rest-pose frames
+/// (docs/performance.md, "Rest-pose frames in the unknowns' order"). Faces without an
 /// unknown corner add nothing and are left out. Every frame visits them in
 /// this one order, so a frame's bits do not depend on how it is solved
 /// (alone or in a group of any size, on any thread).
