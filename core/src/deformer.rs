@@ -47,8 +47,10 @@ use crate::curvenet::{Curvenet, CurvenetLayout, SamplingOptions};
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
 use crate::rig::Rig;
-use crate::skinning::{Mat4, SkinningMethod};
-use crate::solve::{FrameInput, HasWorkspace, Lanes, Workspace};
+use crate::skinning::SkinningMethod;
+use crate::solve::{HasWorkspace, Lanes, Workspace};
+
+pub use crate::frame::{BlendShapeMode, Frame};
 
 /// A mesh in its projection pose (the pose the curvenets were drawn on):
 /// USD / OBJ face layout, counter-clockwise faces seen from outside.
@@ -126,52 +128,6 @@ impl DeformerOptions {
         self.max_segments_per_spline = Some(max);
         self
     }
-}
-
-/// How blend shapes combine with the curvenet deformation.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub enum BlendShapeMode {
-    /// Offsets mapped by each vertex's deformation gradient after the
-    /// deformation (paper §5, the default): sculpts move with the surface.
-    #[default]
-    After,
-    /// Offsets added to the rest pose before the deformation (UsdSkel's order).
-    Before,
-}
-
-/// One frame's input.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Frame<'a> {
-    /// The posed pool of each curvenet (absolute positions), `None` for a
-    /// curvenet not articulated this frame (its knots track the rest pose);
-    /// an empty slice: no curvenet is articulated.
-    pub posed: &'a [Option<&'a [[f64; 3]]>],
-    /// The mesh's rest pose this frame (skinning or cloth output); `None`:
-    /// the projection pose.
-    pub rest: Option<&'a [[f64; 3]]>,
-    /// One weight per blend shape; `None` (or all zero): no blend shapes.
-    pub blend_shape_weights: Option<&'a [f64]>,
-    pub blend_shape_mode: BlendShapeMode,
-    /// Curvenet Adjustments on top of whatever poses the curvenets
-    /// ([`crate::adjust`]); empty: none.
-    pub adjustments: &'a [crate::adjust::Adjustment],
-    /// The frame's skinning transforms (one per joint of the deformer's
-    /// [`Rig`], in the mesh's space), for a deformer with a rig; `None`: no
-    /// skinning this frame. With them, `rest` (or the projection pose) is
-    /// the mesh's points before skinning: blend shapes in the `before` mode
-    /// are added to it, the skin then gives the frame's rest pose; and every
-    /// spline-skinned curvenet's posed pool is its spline skinning (in place
-    /// of its entry of `posed`).
-    pub joint_transforms: Option<&'a [Mat4]>,
-    /// Rest-cage edits `C` this frame (one point per cage vertex, the
-    /// mesh's space), for a deformer with a cage ([`DeformerInput::cage`]);
-    /// `None`: the cage at bind. The mesh's rest pose follows as `M =
-    /// base + Φ(C − C₀)` (`base`: the points above, sculpted), the joints by
-    /// SkelUp.
-    pub rest_cage: Option<&'a [[f64; 3]]>,
-    /// Posed-cage edits `∂C′` this frame (one offset per cage vertex, the
-    /// skinned points' space), taken back to the rest cage by CageRev.
-    pub posed_cage_offsets: Option<&'a [[f64; 3]]>,
 }
 
 /// Times of a deformer's construction, milliseconds.
@@ -555,7 +511,8 @@ impl Deformer {
     fn stage(&self, frame: &Frame<'_>, s: &mut Scratch, n_out: usize) -> Result<()> {
         let Scratch { ws, unposed, rig, .. } = s;
         let posed = self.pose_rig(frame, rig, unposed, true)?;
-        let input = FrameInput { posed: posed.posed(), rest: posed.rest, adjustments: frame.adjustments };
+        let input =
+            Frame { posed: posed.posed(), rest: posed.rest, adjustments: frame.adjustments, ..Frame::default() };
         self.binding.deform_samples(&input, ws, n_out)
     }
 

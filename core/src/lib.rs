@@ -24,6 +24,7 @@ pub mod curvenet;
 pub mod deformer;
 pub mod draft;
 pub mod error;
+pub mod frame;
 pub mod halfedge;
 pub mod heap;
 pub mod ids;
@@ -50,7 +51,7 @@ pub use deformer::{
     BatchError, BlendShapeMode, CageInput, CagePose, CurvenetInput, DEFAULT_BATCH_FRAMES, Deformer, DeformerInput,
     DeformerOptions, FlexibleStats, Frame, FrameOut, FramePose, MAX_BATCH_FRAMES, MeshInput,
 };
-pub use solve::{FrameInput, Workspace};
+pub use solve::Workspace;
 
 // Inputs: meshes, curvenets, blend shapes, animation controls.
 pub use adjust::{Adjustment, Rotate, fit_rotation, knot_tangents};

@@ -10,31 +10,14 @@
 
 use glam::{DMat3, DVec3};
 
-use crate::adjust::{Adjustment, UNCLAIMED};
+use crate::adjust::UNCLAIMED;
 use crate::binding::Binding;
 use crate::binding::rhs::RestFaces;
 use crate::curvenet::lanes::{LaneScratch, SlotRows, slot_rows};
 use crate::curvenet::{Mat3, ScaledFrame, constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 use crate::error::{Error, Result};
+use crate::frame::Frame;
 use crate::mesh::check_finite;
-
-/// One frame's input.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct FrameInput<'a> {
-    /// The posed control-point pool of each bound curvenet, in binding
-    /// order (absolute positions); `None` for a curvenet that is not
-    /// articulated this frame, whose knots then track the rest pose.
-    pub posed: &'a [Option<&'a [[f64; 3]]>],
-    /// The mesh's rest pose this frame (skinning or cloth output, one point
-    /// per vertex); `None` for the projection pose.
-    pub rest: Option<&'a [[f64; 3]]>,
-    /// Curvenet Adjustments ([`crate::adjust`]) applied on top of whatever
-    /// posed each curvenet above (its posed pool, else knot tracking to
-    /// `rest`, else the neutral pool), in their knots' orientation frames.
-    /// Empty (the default): none; identity adjustments change nothing, bit
-    /// for bit.
-    pub adjustments: &'a [Adjustment],
-}
 
 /// Reusable buffers of a frame solve, sized for one binding.
 #[derive(Debug, Clone)]
@@ -117,11 +100,12 @@ impl Binding {
     /// gradients (row-major 3×3) into `gradients`.
     pub fn deform(
         &self,
-        input: &FrameInput<'_>,
+        input: &Frame<'_>,
         ws: &mut Workspace,
         out: &mut [[f64; 3]],
         gradients: Option<&mut [[f64; 9]]>,
     ) -> Result<()> {
+        input.check_binding_only()?;
         self.deform_harmonic_rhs(input, ws, out.len())?;
         // Harmonic solve for f_v (line 6, Eq. 4).
         self.solve_harmonic(ws);
@@ -133,7 +117,7 @@ impl Binding {
 
     /// A frame up to its first solve: [`Self::deform_constraints`], then the
     /// harmonic right-hand side (in `ws.grad9[..n_unknowns]`).
-    pub(crate) fn deform_harmonic_rhs(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
+    pub(crate) fn deform_harmonic_rhs(&self, input: &Frame<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         self.deform_constraints(input, ws, n_out)?;
         self.harmonic_rhs(ws);
         Ok(())
@@ -150,7 +134,7 @@ impl Binding {
     /// A frame's constraint rows: checks, the rest pose, the curvenet
     /// deformation, then f_c (in `ws.grad9[n_unknowns..]`) and x_c (in
     /// `ws.xc`). `n_out`: the length of the caller's output.
-    pub(crate) fn deform_constraints(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
+    pub(crate) fn deform_constraints(&self, input: &Frame<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         self.deform_samples(input, ws, n_out)?;
         self.deform_rows(ws)
     }
@@ -159,7 +143,7 @@ impl Binding {
     /// pose, Curvenet Adjustments, and every curvenet's samples (in
     /// `ws.samples`). [`Self::deform_rows`] (one frame) or
     /// [`Self::lanes_rows`] (a group) makes the rows from them.
-    pub(crate) fn deform_samples(&self, input: &FrameInput<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
+    pub(crate) fn deform_samples(&self, input: &Frame<'_>, ws: &mut Workspace, n_out: usize) -> Result<()> {
         let posed = input.posed;
         if posed.len() != self.layouts.len() {
             return Err(Error::CountMismatch {

@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use curvenet_core::binding::{BindOptions, BindWarning, Binding};
 use curvenet_core::error::SegmentRef;
-use curvenet_core::{Curvenet, CurvenetLayout, Error, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_core::{Curvenet, CurvenetLayout, Error, Frame, PolyMesh, SamplingOptions};
 
 /// A heightfield grid over [0, 1]² (`n` quads a side) at z = `height(x, y)`.
 fn heightfield(n: usize, height: impl Fn(f64, f64) -> f64) -> (PolyMesh, Vec<[f64; 3]>) {
@@ -33,7 +33,7 @@ fn bind(mesh: &PolyMesh, pts: &[[f64; 3]], net: &NetBuilder, strict: bool) -> Re
 fn neutral(b: &Binding, net: &NetBuilder) -> Vec<[f64; 3]> {
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&net.points)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+    b.deform(&Frame { posed: &[Some(&net.points)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
         .unwrap();
     out
 }
@@ -105,8 +105,7 @@ fn a_segment_across_two_components_is_left_out_with_a_warning() {
     let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-        .unwrap();
+    b.deform(&Frame { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0], p[1] + 0.25, p[2]]).collect();
     assert!(max_error(&out, &shifted) <= 1e-9 * diag);
     assert!(matches!(bind(&mesh, &pts, &net, true), Err(Error::SegmentDetour { .. })));
@@ -289,8 +288,7 @@ fn a_cage_with_folded_faces_binds_with_them_split() {
     let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-        .unwrap();
+    b.deform(&Frame { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
     let e = max_error(&out, &moved);
     println!("fish cage: a rotation of the curvenet moves the cage {:.1e} of the diagonal off the rotation", e / diag);
@@ -324,8 +322,7 @@ fn curves_whose_projections_cross_bind_with_a_warning() {
     let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| apply(&rot, p)).collect();
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-        .unwrap();
+    b.deform(&Frame { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     let moved: Vec<[f64; 3]> = pts.iter().map(|&p| apply(&rot, p)).collect();
     let e = max_error(&out, &moved);
     assert!(e <= 1e-9 * diag, "a rotation of both lines rotates the plate: {e:e}");
@@ -365,9 +362,7 @@ fn a_curve_folding_back_over_itself_in_projection_binds() {
     let moved: Vec<[f64; 3]> = net.points.iter().map(|p| [p[0] + 0.1, p[1] - 0.2, p[2] + 0.3]).collect();
     let mut ws = bound.workspace();
     let mut out = vec![[0.0; 3]; bound.n_vertices()];
-    bound
-        .deform(&FrameInput { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-        .unwrap();
+    bound.deform(&Frame { posed: &[Some(&moved)], rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
     let shifted: Vec<[f64; 3]> = pts.iter().map(|p| [p[0] + 0.1, p[1] - 0.2, p[2] + 0.3]).collect();
     assert!(max_error(&out, &shifted) <= 1e-9 * diag);
 }

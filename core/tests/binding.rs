@@ -78,13 +78,8 @@ fn max_dist(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
 fn deform(b: &Binding, pool: &[[f64; 3]]) -> Vec<[f64; 3]> {
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    b.deform(
-        &curvenet_core::FrameInput { posed: &[Some(pool)], rest: None, ..Default::default() },
-        &mut ws,
-        &mut out,
-        None,
-    )
-    .unwrap();
+    b.deform(&curvenet_core::Frame { posed: &[Some(pool)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
+        .unwrap();
     out
 }
 

@@ -270,7 +270,7 @@ fn quad_and_nonplanar_pentagon_meshes_bind_and_reproduce_rigid_motions() {
         let mut ws = b.workspace();
         let mut out = vec![[0.0; 3]; b.n_vertices()];
         b.deform(
-            &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+            &curvenet_core::Frame { posed: &[Some(&pool)], rest: None, ..Default::default() },
             &mut ws,
             &mut out,
             None,
@@ -338,7 +338,7 @@ fn an_untouched_component_passes_through_with_a_warning_and_strict_refuses_it() 
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
     b.deform(
-        &curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, ..Default::default() },
+        &curvenet_core::Frame { posed: &[Some(&pool)], rest: None, ..Default::default() },
         &mut ws,
         &mut out,
         None,
@@ -416,7 +416,7 @@ fn two_curvenets_bind_to_one_mesh() {
     let mut out = vec![[0.0; 3]; binding.n_vertices()];
     binding
         .deform(
-            &curvenet_core::FrameInput { posed: &[None, Some(&moved)], rest: None, ..Default::default() },
+            &curvenet_core::Frame { posed: &[None, Some(&moved)], rest: None, ..Default::default() },
             &mut ws,
             &mut out,
             None,

@@ -6,7 +6,7 @@ mod common;
 
 use common::*;
 use curvenet_core::binding::{BindOptions, Binding};
-use curvenet_core::{Curvenet, CurvenetLayout, FrameInput, PolyMesh, SamplingOptions};
+use curvenet_core::{Curvenet, CurvenetLayout, Frame, PolyMesh, SamplingOptions};
 
 /// A closed tube of radius `r` around z, `z ∈ [0, h]`, quads on the side
 /// (`around` × `up`), each end capped by `rings` concentric quad rings and a
@@ -130,8 +130,7 @@ fn cap_moves_rigidly(flip: bool, density: f64) {
     ];
     for (what, rot, shift) in motions {
         let posed: Vec<[f64; 3]> = net.points.iter().map(|&p| rigid(&rot, shift, p)).collect();
-        b.deform(&FrameInput { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None)
-            .unwrap();
+        b.deform(&Frame { posed: &[Some(&posed)], rest: None, ..Default::default() }, &mut ws, &mut out, None).unwrap();
         let (mut worst, mut at) = (0.0f64, 0usize);
         for (v, (&o, &p)) in out.iter().zip(&pts).enumerate() {
             let e = norm(sub(o, rigid(&rot, shift, p)));

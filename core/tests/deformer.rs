@@ -8,7 +8,7 @@ use common::*;
 use curvenet_core::blend_shapes::{BlendShape, BlendShapes};
 use curvenet_core::{
     Binding, BlendShapeMode, CurvenetInput, CurvenetLayout, Deformer, DeformerInput, DeformerOptions, Error, Frame,
-    FrameInput, MeshInput, PolyMesh, SamplingOptions,
+    MeshInput, PolyMesh, SamplingOptions,
 };
 
 fn hand_with_grid() -> (PolyMesh, Vec<[f64; 3]>, NetBuilder) {
@@ -73,7 +73,7 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
             match mode {
                 BlendShapeMode::After => {
                     b.deform(
-                        &FrameInput { posed: &[Some(&posed)], rest, ..Default::default() },
+                        &Frame { posed: &[Some(&posed)], rest, ..Default::default() },
                         &mut ws,
                         &mut want,
                         Some(&mut g),
@@ -85,7 +85,7 @@ fn a_frame_is_the_binding_solve_with_blend_shapes_before_or_after() {
                     let mut sculpted = rest.unwrap_or(&pts).to_vec();
                     bs.add_to(&weights, &mut sculpted).unwrap();
                     b.deform(
-                        &FrameInput { posed: &[Some(&posed)], rest: Some(&sculpted), ..Default::default() },
+                        &Frame { posed: &[Some(&posed)], rest: Some(&sculpted), ..Default::default() },
                         &mut ws,
                         &mut want,
                         None,

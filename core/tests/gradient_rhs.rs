@@ -9,8 +9,8 @@
 mod common;
 
 use common::*;
+use curvenet_core::Frame;
 use curvenet_core::binding::{BindOptions, Binding};
-use curvenet_core::solve::FrameInput;
 use curvenet_core::{ClosestPointBvh, Curvenet, CurvenetLayout, SamplingOptions};
 
 fn bound(name: &str, center_vertex: usize) -> (Binding, Vec<[f64; 3]>, Vec<[f64; 3]>, f64) {
@@ -46,9 +46,8 @@ fn gathered_and_face_by_face_poisson_right_hand_sides_agree() {
         let n = b.n_vertices();
         let (mut gathered, mut faces) = (vec![[0.0; 3]; n], vec![[0.0; 3]; n]);
         let posed = [Some(pool.as_slice())];
-        b.deform(&FrameInput { posed: &posed, ..Default::default() }, &mut ws, &mut gathered, None).unwrap();
-        b.deform(&FrameInput { posed: &posed, rest: Some(&pts), ..Default::default() }, &mut ws, &mut faces, None)
-            .unwrap();
+        b.deform(&Frame { posed: &posed, ..Default::default() }, &mut ws, &mut gathered, None).unwrap();
+        b.deform(&Frame { posed: &posed, rest: Some(&pts), ..Default::default() }, &mut ws, &mut faces, None).unwrap();
         let moved = gathered.iter().zip(&pts).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max);
         let gap = gathered.iter().zip(&faces).map(|(p, q)| norm(sub(*p, *q))).fold(0.0, f64::max);
         eprintln!(

@@ -133,10 +133,10 @@ fn whole_frame_solve() {
     let before = counting::allocations();
     for rest in [None, Some(rest.as_slice())] {
         for adjustments in [&[][..], &adjustments[..]] {
-            let input = curvenet_core::FrameInput { posed: &[Some(&pose)], rest, adjustments };
+            let input = curvenet_core::Frame { posed: &[Some(&pose)], rest, adjustments, ..Default::default() };
             binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
         }
-        let input = curvenet_core::FrameInput { posed: &[None], rest, adjustments: &adjustments };
+        let input = curvenet_core::Frame { posed: &[None], rest, adjustments: &adjustments, ..Default::default() };
         binding.deform(&input, &mut ws, &mut out, Some(&mut grads)).unwrap();
     }
     let after = counting::allocations();

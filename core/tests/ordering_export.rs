@@ -119,7 +119,7 @@ fn a_frames_exported_systems_are_the_ones_it_solves() {
     // The recorded positions are the frame's output at the unknowns' vertices.
     let mut ws = b.workspace();
     let mut out = vec![[0.0; 3]; b.n_vertices()];
-    let input = curvenet_core::FrameInput { posed: &[Some(&pool)], rest: None, adjustments: &[] };
+    let input = curvenet_core::Frame { posed: &[Some(&pool)], ..Default::default() };
     b.deform(&input, &mut ws, &mut out, None).unwrap();
     for u in 0..n {
         let v = b.unknown_vertex(curvenet_core::ids::Unknown(u as u32)).index();

@@ -9,6 +9,7 @@
 //! the thread that reads it, and hand the plain data across threads.
 
 pub mod data;
+pub mod frame;
 pub mod usd;
 pub mod wire;
 

@@ -655,6 +655,11 @@ pub struct AdjustmentSpec {
     /// Acts on the knot's attached tangents.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rotate: Option<[f64; 3]>,
+    /// Rotate about the knot in its frame by a quaternion `(w, x, y, z)`
+    /// instead (USD's `xformOp:orient`; normalised); give `rotate` or
+    /// `orient`, not both. Acts on the knot's attached tangents.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orient: Option<[f64; 4]>,
     /// Scale about the knot in its frame; default `[1, 1, 1]`. Acts on the
     /// knot's attached tangents.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -369,3 +369,60 @@ async fn the_viewer_frame_draws_the_adjusted_curvenet() {
     let solved: Vec<f32> = solve_reference(&posed, &core).into_iter().flatten().collect();
     assert_eq!(points, solved);
 }
+
+/// `orient` rotates a knot by a quaternion `(w, x, y, z)` (USD's
+/// `xformOp:orient`), answering core's `Rotate::Quaternion` bit for bit in
+/// the JSON and the binary forms; with `rotate` too, or past the
+/// coordinate bound, it is a 422 naming `adjustments[i].orient`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn orient_rotates_by_a_quaternion_and_not_beside_rotate() {
+    let app = app(state());
+    let id = bind(&app).await;
+    let uri = format!("/v1/bindings/{id}/frames");
+    let posed = posed_pool(-7.0);
+    let knot = knots()[1];
+    let q = [0.95, 0.12, -0.2, 0.21];
+    let want = solve_reference(&posed, &[Adjustment::new(0, knot).with_rotate(Rotate::Quaternion(q))]);
+    assert!(max_diff(&want, &solve_reference(&posed, &[])) > 1e-5, "the quaternion moves the surface");
+
+    let wire = json!([{"curvenet": 0, "knot": knot, "orient": q}]);
+    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let r: FrameResponse = serde_json::from_slice(&body).unwrap();
+    assert_eq!(r.points, want, "JSON: bit for bit after f32");
+
+    let header = json!({"arrays": [{"name": "posed", "index": 0, "shape": [posed.len(), 3]}], "adjustments": wire});
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
+    bin.extend_from_slice(&h);
+    let posed32: Vec<[f64; 3]> = posed.iter().map(|p| p.map(|x| x as f32 as f64)).collect();
+    for x in posed32.iter().flatten() {
+        bin.extend_from_slice(&(*x as f32).to_le_bytes());
+    }
+    let req =
+        Request::post(&uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
+    let (status, body) = send(&app, req).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
+    let data: Vec<f32> = body[4 + hl..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    let points: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let want32 = solve_reference(&posed32, &[Adjustment::new(0, knot).with_rotate(Rotate::Quaternion(q))]);
+    assert_eq!(points, want32, "binary: bit for bit after f32 (f32 input)");
+
+    for (adjustment, what) in [
+        (json!({"curvenet": 0, "knot": knot, "rotate": [0.0, 0.0, 10.0], "orient": q}), "both"),
+        (json!({"curvenet": 0, "knot": knot, "orient": [1.0, 0.0, 2e15, 0.0]}), "beyond"),
+    ] {
+        let frame = json!({"adjustments": [{"curvenet": 0, "knot": knots()[0]}, adjustment]});
+        let (status, body) = send(&app, post_json(&uri, &frame)).await;
+        assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{what}: {}", String::from_utf8_lossy(&body));
+        let v: Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(v["code"], "invalid_parameter", "{what}: {v}");
+        assert_eq!(v["details"]["what"], "adjustments[1].orient", "{what}: {v}");
+        assert_eq!(
+            (v["details"]["adjustment"].clone(), v["details"]["control_point"].clone()),
+            (json!(1), json!(knot))
+        );
+        assert!(v["message"].as_str().unwrap().contains(what), "{what}: {v}");
+    }
+}

@@ -247,8 +247,7 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
         Ok(FrameRequest {
             posed: Some(vec![Some(shifted(&pool, [0.01 * k as f64, 0.0, 0.0]))]),
             ..FrameRequest::default()
-        }
-        .into())
+        })
     });
     let index = state.open_in_viewer(ViewerStage::new(
         "shots/wave.usda".into(),
@@ -308,7 +307,7 @@ async fn an_opened_stage_is_listed_bound_and_solved_frame_by_frame() {
 }
 
 fn no_frames() -> FrameSource {
-    Arc::new(|_| Ok(FrameRequest::default().into()))
+    Arc::new(|_| Ok(FrameRequest::default()))
 }
 
 fn open(state: &AppState, req: BindingRequest) -> usize {
@@ -439,14 +438,7 @@ async fn an_opened_caged_stage_draws_its_posed_cage_and_bakes_alike() {
     let server = Served::start(&["--open-stage", CAGED]);
     let client = reqwest::Client::new();
     let base = &server.url;
-    let get = |url: String| {
-        let client = client.clone();
-        async move {
-            let r = client.get(&url).send().await.unwrap();
-            assert_eq!(r.status(), 200, "GET {url}");
-            r.json::<Value>().await.unwrap()
-        }
-    };
+    let get = |url: String| common::get_json(client.clone(), url);
     let listed = get(format!("{base}/v1/viewer/stages")).await;
     let times = floats(&listed["stages"][0]["times"]);
     assert_eq!(times, (1..=10).map(f64::from).collect::<Vec<_>>(), "the cage's frames");

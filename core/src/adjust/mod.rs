@@ -3,7 +3,7 @@
 //! animators' adjustments of knots expressed in them.
 //!
 //! It runs inside every frame ([`crate::Binding::deform`] with
-//! [`crate::FrameInput::adjustments`]) after everything that poses the
+//! [`crate::Frame::adjustments`]) after everything that poses the
 //! curvenet — its posed pool, else knot tracking to the frame's rest pose,
 //! else the neutral pool — and before the curvenet is sampled for the solve:
 //!

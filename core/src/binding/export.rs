@@ -13,7 +13,7 @@
 
 use crate::cholesky::{Cholesky, SymmetricTriplets};
 use crate::error::{Error, Result};
-use crate::solve::FrameInput;
+use crate::frame::Frame;
 
 use super::assemble::split_face;
 use super::{Binding, RecordedSolve, SOLVES};
@@ -91,7 +91,7 @@ impl Binding {
         let mut ws = self.workspace();
         let mut out = vec![[0.0; 3]; self.n_vertices()];
         let recording = Recording::start();
-        self.deform(&FrameInput { posed, rest: None, adjustments: &[] }, &mut ws, &mut out, None)?;
+        self.deform(&Frame { posed, ..Frame::default() }, &mut ws, &mut out, None)?;
         let solves = recording.take();
         if n == 0 {
             return Ok(FrameSystem { n, rhs9: Vec::new(), x9: Vec::new(), rhs3: Vec::new(), x3: Vec::new() });

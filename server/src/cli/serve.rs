@@ -11,10 +11,10 @@ use std::time::Duration;
 
 use clap::Parser as _;
 use curvenet_schema::usd::{CurvenetSkinning, Stage};
-use curvenet_schema::wire::{BindingRequest, CurvenetSkinSpec, FrameRequest};
+use curvenet_schema::wire::{AdjustmentSpec, BindingRequest, CurvenetSkinSpec, FrameRequest};
 use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use curvenet_server::{
-    AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, StageAdjustment, StageFrame, ViewerStage,
+    AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, StageAdjustment, ViewerStage,
 };
 
 use super::{CliError, CliResult};
@@ -333,7 +333,7 @@ fn baker() -> Baker {
 
 /// A frame request to the thread that owns an opened stage: (mesh, frame,
 /// where to answer).
-type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<StageFrame, String>>);
+type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<FrameRequest, String>>);
 
 /// Opens `path` for the viewer: one [`ViewerStage`] per curvenet-deformed
 /// mesh, with the frames `curvenet bake` would bake (a stage with no time
@@ -487,15 +487,14 @@ impl Caged {
     }
 
     /// `frame` with the joint transforms and the cage's edits at `time`.
-    fn frame(&self, stage: &Stage, mut frame: StageFrame, time: f64) -> Result<StageFrame, String> {
+    fn frame(&self, stage: &Stage, mut frame: FrameRequest, time: f64) -> Result<FrameRequest, String> {
         if let Some((joints, _)) = &self.skin {
-            frame.request.joint_transforms =
-                Some(joints.read_transforms(stage, Some(time)).map_err(|e| e.to_string())?);
+            frame.joint_transforms = Some(joints.read_transforms(stage, Some(time)).map_err(|e| e.to_string())?);
         }
         if let Some(cage) = &self.cage {
             let edits = cage.frame(Some(time));
-            frame.request.rest_cage = edits.rest_cage().map(<[_]>::to_vec);
-            frame.request.posed_cage_offsets = edits.posed_cage_offsets().map(<[_]>::to_vec);
+            frame.rest_cage = edits.rest_cage().map(<[_]>::to_vec);
+            frame.posed_cage_offsets = edits.posed_cage_offsets().map(<[_]>::to_vec);
         }
         Ok(frame)
     }
@@ -534,7 +533,7 @@ fn read_frame(
     reads_rest: bool,
     adjustments: &[Vec<AdjustmentData>],
     time: f64,
-) -> Result<StageFrame, String> {
+) -> Result<FrameRequest, String> {
     let posed = nets
         .iter()
         .map(|n| stage.posed_pool(n, Some(time)))
@@ -547,8 +546,11 @@ fn read_frame(
         Some(stage.blend_shape_weights(mesh, Some(time)).map_err(|e| e.to_string())?)
     };
     let adjustments = stage.adjustments_at(adjustments, Some(time)).map_err(|e| e.to_string())?;
-    Ok(StageFrame {
-        request: FrameRequest { posed: Some(posed), rest, blend_shape_weights: weights, ..FrameRequest::default() },
-        adjustments,
+    Ok(FrameRequest {
+        posed: Some(posed),
+        rest,
+        blend_shape_weights: weights,
+        adjustments: adjustments.iter().map(AdjustmentSpec::from).collect(),
+        ..FrameRequest::default()
     })
 }

@@ -2,13 +2,13 @@
 //! `curvenet_schema::wire`: `u32` LE header length, a JSON header listing
 //! the arrays, then the arrays as raw little-endian f32.
 
-use curvenet_schema::wire::{BinaryArray, BinaryFrameHeader, BinaryResponseHeader};
+use curvenet_schema::wire::{BinaryArray, BinaryFrameHeader, BinaryResponseHeader, FrameRequest};
 
 use utoipa::ToSchema;
 
 use crate::bounded::BatchError;
 use crate::error::{Code, ServiceError};
-use crate::frame::{Frame, Solved};
+use crate::frame::Solved;
 
 /// A binary frame body (`application/octet-stream`): u32 LE header length,
 /// a JSON header (`BinaryFrameHeader`, or `{"frames": [...]}` for a batch;
@@ -62,7 +62,7 @@ pub struct Expected<'a> {
 /// and shape (against `expected`) are checked before any array is decoded;
 /// values (finiteness) are checked by `frame::validate`. A curvenet without
 /// a `posed` array is not articulated.
-pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool), ServiceError> {
+pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<FrameRequest>, bool), ServiceError> {
     let (header, mut data) = split(body)?;
     // Typed straight from the bytes (a generic JSON value costs tens of bytes
     // per byte of header), a batch's frames counted as they come.
@@ -111,29 +111,29 @@ pub fn parse(body: &[u8], expected: &Expected<'_>) -> Result<(Vec<Frame>, bool),
     }
     let mut frames = Vec::with_capacity(headers.len());
     for (h, plan) in headers.into_iter().zip(plans) {
-        let mut frame = Frame {
-            mode: h.blend_shape_mode,
-            gradients: h.gradients,
-            topology_hash: h.topology_hash,
-            adjustments: h.adjustments.iter().map(crate::frame::adjustment).collect(),
-            orientations: h.orientations,
-            ..Frame::default()
+        // Every field of the header named, so one added to it cannot be
+        // left out of the frame: the header is the frame without its arrays.
+        let BinaryFrameHeader { arrays: _, blend_shape_mode, gradients, topology_hash, adjustments, orientations } = h;
+        let mut frame = FrameRequest {
+            blend_shape_mode,
+            gradients,
+            topology_hash,
+            adjustments,
+            orientations,
+            ..FrameRequest::default()
         };
         for p in plan {
             let (raw, rest) = data.split_at(p.rows * p.kind.width() * 4);
             data = rest;
             match p.kind {
                 Kind::Posed(k) => {
-                    if frame.posed.is_empty() {
-                        frame.posed = vec![None; expected.pools.len()];
-                    }
-                    frame.posed[k] = Some(points(raw));
+                    frame.posed.get_or_insert_with(|| vec![None; expected.pools.len()])[k] = Some(points(raw));
                 }
                 Kind::Rest => frame.rest = Some(points(raw)),
                 Kind::RestCage => frame.rest_cage = Some(points(raw)),
                 Kind::PosedCageOffsets => frame.posed_cage_offsets = Some(points(raw)),
                 Kind::Weights => {
-                    frame.weights =
+                    frame.blend_shape_weights =
                         Some(raw.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64).collect())
                 }
                 Kind::Joints => {

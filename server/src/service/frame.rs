@@ -1,84 +1,71 @@
-//! The service's frame: a request's frame (JSON `FrameRequest` or binary,
-//! binary.rs) in f64 as one [`Frame`], checked against the binding
-//! (counts, finiteness, topology, adjustments), solved by
+//! The service's frame: every frame a request carries (a JSON frame or a
+//! batch's, a binary frame read by binary.rs, a viewer frame) is the one
+//! wire type `FrameRequest`, checked here against the binding (counts,
+//! finiteness, topology, adjustments: [`validate`]), made core's frame by
+//! [`CoreFrame`] (the one conversion) and solved by
 //! `curvenet_core::Deformer::frame` (or, for a group of a batch's frames,
-//! `Deformer::frames`: [`solve_group`]), and the answer as [`Solved`].
+//! `Deformer::frames`: [`solve_group`]); the answer is [`Solved`].
 
 use std::time::Instant;
 
 use std::collections::BTreeMap;
 
-use curvenet_core::{Adjustment, Rotate};
+use curvenet_core::Adjustment;
 use curvenet_schema::wire::{AdjustmentSpec, BlendShapeMode, FrameRequest, FrameResponse};
 
 use crate::cache::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::request::{MAX_COORDINATE, MAX_WEIGHT, check_points};
 
-/// A frame's input, in f64, whatever its wire form.
+/// Bytes of a frame's arrays (what a batch holds of it,
+/// `--max-batch-memory`); its adjustments counted as the core
+/// `Adjustment`s they become at the solve.
+pub fn held_bytes(frame: &FrameRequest) -> usize {
+    let points = |p: &Option<Vec<[f64; 3]>>| p.as_ref().map_or(0, |p| p.len() * 24);
+    frame.posed.iter().flatten().map(points).sum::<usize>()
+        + points(&frame.rest)
+        + points(&frame.rest_cage)
+        + points(&frame.posed_cage_offsets)
+        + frame.blend_shape_weights.as_ref().map_or(0, |w| w.len() * 8)
+        + frame.joint_transforms.as_ref().map_or(0, |j| j.len() * 128)
+        + frame.adjustments.len() * std::mem::size_of::<Adjustment>()
+        + frame.topology_hash.as_ref().map_or(0, String::len)
+}
+
+/// The one place a frame becomes core's: what `curvenet_core::Frame`
+/// borrows from a [`FrameRequest`] besides its arrays (the posed pools as
+/// slices, the adjustments as core's, `Adjustment::from` in
+/// `curvenet_schema::frame`).
 #[derive(Debug, Clone, Default)]
-pub struct Frame {
-    /// One entry per curvenet (`None`: not articulated); empty: none articulated.
-    pub posed: Vec<Option<Vec<[f64; 3]>>>,
-    pub rest: Option<Vec<[f64; 3]>>,
-    pub weights: Option<Vec<f64>>,
-    pub mode: BlendShapeMode,
-    pub gradients: bool,
-    pub topology_hash: Option<String>,
-    /// Curvenet Adjustments, in request order (checked by core: knots named).
-    pub adjustments: Vec<Adjustment>,
-    /// Whether to answer every knot's orientation.
-    pub orientations: bool,
-    /// The frame's skinning transforms, one per joint of the binding's skin.
-    pub joint_transforms: Option<Vec<[f64; 16]>>,
-    /// The rest cage this frame, one point per cage vertex of the binding.
-    pub rest_cage: Option<Vec<[f64; 3]>>,
-    /// Posed-cage edits this frame, one offset per cage vertex of the binding.
-    pub posed_cage_offsets: Option<Vec<[f64; 3]>>,
+pub(crate) struct CoreFrame<'a> {
+    posed: Vec<Option<&'a [[f64; 3]]>>,
+    adjustments: Vec<Adjustment>,
 }
 
-impl Frame {
-    /// Bytes of its arrays (what a batch holds of it, `--max-batch-memory`).
-    pub fn heap_bytes(&self) -> usize {
-        let points = |p: &Option<Vec<[f64; 3]>>| p.as_ref().map_or(0, |p| p.len() * 24);
-        self.posed.iter().map(points).sum::<usize>()
-            + points(&self.rest)
-            + points(&self.rest_cage)
-            + points(&self.posed_cage_offsets)
-            + self.weights.as_ref().map_or(0, |w| w.len() * 8)
-            + self.joint_transforms.as_ref().map_or(0, |j| j.len() * 128)
-            + self.adjustments.len() * std::mem::size_of::<Adjustment>()
-            + self.topology_hash.as_ref().map_or(0, String::len)
-    }
-}
-
-/// A wire adjustment as core's: absent fields are no change.
-pub fn adjustment(a: &AdjustmentSpec) -> Adjustment {
-    let mut out = Adjustment::new(a.curvenet as usize, a.knot)
-        .with_translate(a.translate.unwrap_or([0.0; 3]))
-        .with_rotate(Rotate::EulerXyz(a.rotate.unwrap_or([0.0; 3])))
-        .with_scale(a.scale.unwrap_or([1.0; 3]))
-        .with_tangent_translates(a.tangent_translates.clone());
-    if let Some(attach) = a.attach_tangents {
-        out = out.with_attach_tangents(attach);
-    }
-    out
-}
-
-impl From<FrameRequest> for Frame {
-    fn from(r: FrameRequest) -> Self {
+impl<'a> CoreFrame<'a> {
+    pub(crate) fn new(request: &'a FrameRequest) -> Self {
         Self {
-            posed: r.posed.unwrap_or_default(),
-            rest: r.rest,
-            weights: r.blend_shape_weights,
-            mode: r.blend_shape_mode,
-            gradients: r.gradients,
-            topology_hash: r.topology_hash,
-            adjustments: r.adjustments.iter().map(adjustment).collect(),
-            orientations: r.orientations,
-            joint_transforms: r.joint_transforms,
-            rest_cage: r.rest_cage,
-            posed_cage_offsets: r.posed_cage_offsets,
+            posed: request.posed.iter().flatten().map(|p| p.as_deref()).collect(),
+            adjustments: request.adjustments.iter().map(Adjustment::from).collect(),
+        }
+    }
+
+    /// The request's adjustments, as core's.
+    pub(crate) fn adjustments(&self) -> &[Adjustment] {
+        &self.adjustments
+    }
+
+    /// Core's frame of `request` (the request these parts were made of).
+    pub(crate) fn frame<'b>(&'b self, request: &'b FrameRequest) -> curvenet_core::Frame<'b> {
+        curvenet_core::Frame {
+            posed: &self.posed,
+            rest: request.rest.as_deref(),
+            blend_shape_weights: request.blend_shape_weights.as_deref(),
+            blend_shape_mode: request.blend_shape_mode.into(),
+            adjustments: &self.adjustments,
+            joint_transforms: request.joint_transforms.as_deref(),
+            rest_cage: request.rest_cage.as_deref(),
+            posed_cage_offsets: request.posed_cage_offsets.as_deref(),
         }
     }
 }
@@ -106,7 +93,7 @@ impl Solved {
 
 /// Checks `frame` against the binding: topology hash, counts, finiteness.
 /// Messages name the array and index (`posed[1][17]`), details the same.
-pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
+pub fn validate(entry: &Entry, frame: &FrameRequest) -> Result<(), ServiceError> {
     if let Some(h) = &frame.topology_hash
         && !h.eq_ignore_ascii_case(&entry.topology_hash)
     {
@@ -127,19 +114,19 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
             d.got = Some(got);
         }
     };
-    if !frame.posed.is_empty() {
-        if frame.posed.len() != b.n_curvenets() {
+    if let Some(posed) = frame.posed.as_ref().filter(|p| !p.is_empty()) {
+        if posed.len() != b.n_curvenets() {
             return Err(ServiceError::new(
                 Code::CountMismatch,
                 format!(
                     "posed has {} entries, but the binding has {} curvenets (one pool or null each)",
-                    frame.posed.len(),
+                    posed.len(),
                     b.n_curvenets()
                 ),
             )
-            .detail(count("posed", b.n_curvenets(), frame.posed.len())));
+            .detail(count("posed", b.n_curvenets(), posed.len())));
         }
-        for (k, pool) in frame.posed.iter().enumerate() {
+        for (k, pool) in posed.iter().enumerate() {
             if let Some(pool) = pool {
                 if pool.len() != b.n_control_points(k) {
                     return Err(ServiceError::new(
@@ -227,7 +214,7 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
         check_points(cage, what)?;
     }
     check_adjustment_values(&frame.adjustments)?;
-    if let Some(w) = &frame.weights {
+    if let Some(w) = &frame.blend_shape_weights {
         let n_shapes = entry.n_shapes();
         if w.len() != n_shapes {
             return Err(ServiceError::new(
@@ -258,33 +245,13 @@ pub fn validate(entry: &Entry, frame: &Frame) -> Result<(), ServiceError> {
     Ok(())
 }
 
-impl Frame {
-    /// The core's frame input over this frame's arrays (`posed`: its posed
-    /// pools as slices), as [`solve`] and [`solve_group`] pass it.
-    pub(crate) fn core<'a>(&'a self, posed: &'a [Option<&'a [[f64; 3]]>]) -> curvenet_core::Frame<'a> {
-        curvenet_core::Frame {
-            posed,
-            rest: self.rest.as_deref(),
-            blend_shape_weights: self.weights.as_deref(),
-            blend_shape_mode: match self.mode {
-                BlendShapeMode::After => curvenet_core::BlendShapeMode::After,
-                BlendShapeMode::Before => curvenet_core::BlendShapeMode::Before,
-            },
-            adjustments: &self.adjustments,
-            joint_transforms: self.joint_transforms.as_deref(),
-            rest_cage: self.rest_cage.as_deref(),
-            posed_cage_offsets: self.posed_cage_offsets.as_deref(),
-        }
-    }
-}
-
 /// Solves a validated frame through `curvenet_core::Deformer::frame`.
 /// CPU-heavy: run it on the solve pool (see pool.rs).
-pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
+pub fn solve(entry: &Entry, frame: &FrameRequest) -> Result<Solved, ServiceError> {
     let t0 = Instant::now();
     let n = entry.binding().n_vertices();
-    let posed: Vec<Option<&[[f64; 3]]>> = frame.posed.iter().map(|p| p.as_deref()).collect();
-    let input = frame.core(&posed);
+    let parts = CoreFrame::new(frame);
+    let input = parts.frame(frame);
     let mut points = vec![[0.0; 3]; n];
     let mut gradients = frame.gradients.then(|| vec![[0.0; 9]; n]);
     entry
@@ -302,13 +269,12 @@ pub fn solve(entry: &Entry, frame: &Frame) -> Result<Solved, ServiceError> {
 /// for the group; the same results as [`solve`] frame by frame). Each
 /// frame's `solve_ms` is the group's time over its frames. An error names
 /// the frame by its index in `frames`. CPU-heavy: run it on the solve pool.
-pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usize, ServiceError)> {
+pub fn solve_group(entry: &Entry, frames: &[FrameRequest]) -> Result<Vec<Solved>, (usize, ServiceError)> {
     let t0 = Instant::now();
     let n = entry.binding().n_vertices();
-    let posed: Vec<Vec<Option<&[[f64; 3]]>>> =
-        frames.iter().map(|f| f.posed.iter().map(|p| p.as_deref()).collect()).collect();
+    let parts: Vec<CoreFrame<'_>> = frames.iter().map(CoreFrame::new).collect();
     let inputs: Vec<curvenet_core::Frame<'_>> =
-        frames.iter().zip(&posed).map(|(frame, posed)| frame.core(posed)).collect();
+        frames.iter().zip(&parts).map(|(frame, parts)| parts.frame(frame)).collect();
     let mut points = vec![vec![[0.0; 3]; n]; frames.len()];
     let mut gradients: Vec<Option<Vec<[f64; 9]>>> =
         frames.iter().map(|f| f.gradients.then(|| vec![[0.0; 9]; n])).collect();
@@ -337,38 +303,43 @@ pub fn solve_group(entry: &Entry, frames: &[Frame]) -> Result<Vec<Solved>, (usiz
         .collect()
 }
 
-/// Refuses an adjustment value beyond the service's coordinate bound (core
-/// refuses only non-finite ones): translates, scales, rotate angles and
-/// tangent translates past 1e15 are `invalid_parameter`, naming
-/// `adjustments[i].field` and the adjustment, curvenet and knot in details.
-fn check_adjustment_values(adjustments: &[Adjustment]) -> Result<(), ServiceError> {
+/// Refuses an adjustment the wire allows but the service does not: both
+/// `rotate` and `orient` given, or a value beyond the service's coordinate
+/// bound (core refuses only non-finite ones: translates, scales, rotate
+/// angles, quaternions and tangent translates past 1e15). Both are
+/// `invalid_parameter`, naming `adjustments[i].field` and the adjustment,
+/// curvenet and knot in details.
+fn check_adjustment_values(adjustments: &[AdjustmentSpec]) -> Result<(), ServiceError> {
     for (i, a) in adjustments.iter().enumerate() {
-        let rotate: &[f64] = match &a.rotate {
-            Rotate::EulerXyz(e) => e,
-            Rotate::Quaternion(q) => q,
+        let refuse = |field: &str, message: String| {
+            ServiceError::new(
+                Code::InvalidParameter,
+                format!("adjustments[{i}] (curvenet {}, knot {}): {message}", a.curvenet, a.knot),
+            )
+            .detail(|d| {
+                d.adjustment = Some(i);
+                d.curvenet = Some(a.curvenet);
+                d.control_point = Some(a.knot);
+                d.what = Some(format!("adjustments[{i}].{field}"));
+            })
         };
-        let fields: [(&str, &[f64]); 4] = [
-            ("translate", &a.translate),
-            ("rotate", rotate),
-            ("scale", &a.scale),
+        if a.rotate.is_some() && a.orient.is_some() {
+            return Err(refuse(
+                "orient",
+                "both rotate (Euler angles) and orient (a quaternion) are given; give one".into(),
+            ));
+        }
+        let fields: [(&str, &[f64]); 5] = [
+            ("translate", a.translate.as_ref().map_or(&[], |v| v)),
+            ("rotate", a.rotate.as_ref().map_or(&[], |v| v)),
+            ("orient", a.orient.as_ref().map_or(&[], |v| v)),
+            ("scale", a.scale.as_ref().map_or(&[], |v| v)),
             ("tangent_translates", a.tangent_translates.as_flattened()),
         ];
         for (field, values) in fields {
             // A non-finite value is core's to refuse (InvalidAdjustment).
             if let Some(x) = values.iter().find(|x| x.is_finite() && x.abs() > MAX_COORDINATE) {
-                return Err(ServiceError::new(
-                    Code::InvalidParameter,
-                    format!(
-                        "adjustments[{i}] (curvenet {}, knot {}): its {field} has {x:e}, beyond {MAX_COORDINATE:e}",
-                        a.curvenet, a.knot
-                    ),
-                )
-                .detail(|d| {
-                    d.adjustment = Some(i);
-                    d.curvenet = Some(a.curvenet as u32);
-                    d.control_point = Some(a.knot);
-                    d.what = Some(format!("adjustments[{i}].{field}"));
-                }));
+                return Err(refuse(field, format!("its {field} has {x:e}, beyond {MAX_COORDINATE:e}")));
             }
         }
     }
@@ -378,10 +349,10 @@ fn check_adjustment_values(adjustments: &[Adjustment]) -> Result<(), ServiceErro
 /// An error about adjustment `i` also names its curvenet (core's
 /// out-of-range knot names only the adjustment and the control point) and,
 /// when core's message does not, the adjustment's place in the request.
-pub(crate) fn name_adjustment(e: ServiceError, adjustments: &[Adjustment]) -> ServiceError {
+pub(crate) fn name_adjustment(e: ServiceError, adjustments: &[AdjustmentSpec]) -> ServiceError {
     let Some(i) = e.details.as_ref().and_then(|d| d.adjustment) else { return e };
     let Some(a) = adjustments.get(i) else { return e };
-    let curvenet = a.curvenet as u32;
+    let curvenet = a.curvenet;
     let e = e.detail(|d| {
         d.curvenet.get_or_insert(curvenet);
     });
@@ -397,9 +368,9 @@ pub(crate) fn name_adjustment(e: ServiceError, adjustments: &[Adjustment]) -> Se
 /// `Binding::knot_orientations`), in the pose the frame's adjustments act
 /// on: the posed pool, else the pool tracked to the frame's rest pose (with
 /// `before`-mode blend shapes added to it, as `Deformer::frame` does).
-fn orientations(entry: &Entry, frame: &Frame) -> Result<Vec<BTreeMap<String, [f64; 9]>>, ServiceError> {
+fn orientations(entry: &Entry, frame: &FrameRequest) -> Result<Vec<BTreeMap<String, [f64; 9]>>, ServiceError> {
     let deformer = &entry.deformer;
-    let sculpted = match (&frame.weights, frame.mode) {
+    let sculpted = match (&frame.blend_shape_weights, frame.blend_shape_mode) {
         (Some(w), BlendShapeMode::Before) if entry.n_shapes() > 0 && w.iter().any(|&x| x != 0.0) => {
             let mut rest = frame.rest.clone().unwrap_or_else(|| deformer.projection_points().to_vec());
             deformer.blend_shapes().add_to(w, &mut rest).map_err(|e| ServiceError::core(e, Phase::Frame))?;
@@ -411,7 +382,7 @@ fn orientations(entry: &Entry, frame: &Frame) -> Result<Vec<BTreeMap<String, [f6
     let b = deformer.binding();
     (0..b.n_curvenets())
         .map(|k| {
-            let posed = frame.posed.get(k).and_then(|p| p.as_deref());
+            let posed = frame.posed.as_ref().and_then(|p| p.get(k)).and_then(|p| p.as_deref());
             let knots = b.knot_orientations(k, posed, rest).map_err(|e| ServiceError::core(e, Phase::Frame))?;
             Ok(knots
                 .into_iter()
@@ -444,5 +415,35 @@ fn in_f32<const N: usize>(values: &[[f64; N]], what: &str) -> Result<Vec<[f32; N
             d.what = Some(what.to_string());
             d.vertex = Some(i as u32);
         })),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A request's arrays reach core's frame as the same slices.
+    #[test]
+    fn the_core_frame_borrows_the_requests_arrays() {
+        let request = FrameRequest {
+            posed: Some(vec![None, Some(vec![[1.0, 2.0, 3.0]])]),
+            rest: Some(vec![[0.0; 3]; 4]),
+            blend_shape_weights: Some(vec![0.5]),
+            blend_shape_mode: BlendShapeMode::Before,
+            joint_transforms: Some(vec![curvenet_core::MAT4_IDENTITY]),
+            ..FrameRequest::default()
+        };
+        let parts = CoreFrame::new(&request);
+        let frame = parts.frame(&request);
+        assert_eq!(frame.posed.len(), 2);
+        assert!(frame.posed[0].is_none());
+        assert_eq!(frame.posed[1], Some(&[[1.0, 2.0, 3.0]][..]));
+        assert_eq!(frame.rest.map(<[_]>::len), Some(4));
+        assert_eq!(frame.blend_shape_weights, Some(&[0.5][..]));
+        assert!(matches!(frame.blend_shape_mode, curvenet_core::BlendShapeMode::Before));
+        assert_eq!(frame.joint_transforms.map(<[_]>::len), Some(1));
+        assert!(frame.rest_cage.is_none() && frame.posed_cage_offsets.is_none() && frame.adjustments.is_empty());
+        let unposed = FrameRequest::default();
+        assert!(CoreFrame::new(&unposed).frame(&unposed).posed.is_empty());
     }
 }

@@ -113,12 +113,12 @@ fn check_parse(body: &[u8]) -> Result<(), TestCaseError> {
         Ok((frames, _)) => {
             prop_assert!(frames.len() <= EXPECTED.max_frames);
             for f in &frames {
-                prop_assert!(f.posed.is_empty() || f.posed.len() == POOLS.len());
-                for (k, p) in f.posed.iter().enumerate() {
+                prop_assert!(f.posed.as_ref().is_none_or(|p| p.len() == POOLS.len()));
+                for (k, p) in f.posed.iter().flatten().enumerate() {
                     prop_assert!(p.as_ref().is_none_or(|p| p.len() == POOLS[k]));
                 }
                 prop_assert!(f.rest.as_ref().is_none_or(|r| r.len() == EXPECTED.vertices));
-                prop_assert!(f.weights.as_ref().is_none_or(|w| w.len() == EXPECTED.blend_shapes));
+                prop_assert!(f.blend_shape_weights.as_ref().is_none_or(|w| w.len() == EXPECTED.blend_shapes));
                 prop_assert!(f.joint_transforms.as_ref().is_none_or(|t| Some(t.len()) == EXPECTED.joints));
             }
         }

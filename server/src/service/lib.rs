@@ -70,4 +70,4 @@ pub use request::{MAX_COORDINATE, MAX_WEIGHT};
 pub use routes::app;
 pub use serve::{Drained, run};
 pub use state::AppState;
-pub use viewer::{FrameSource, StageAdjustment, StageFrame, ViewerStage};
+pub use viewer::{FrameSource, StageAdjustment, ViewerStage};

@@ -18,7 +18,9 @@ use crate::cache::Entry;
 use crate::config::BATCH_FRAMES;
 use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
-use crate::frame::{self, Frame, Solved};
+use curvenet_schema::wire::FrameRequest;
+
+use crate::frame::{self, Solved};
 use crate::metrics::Metrics;
 use crate::state::{AppState, BatchMemory, blocking};
 
@@ -68,7 +70,7 @@ pub(crate) async fn solve_frames<T: Send + 'static>(
     entry: Arc<Entry>,
     numbering: Numbering,
     memory: Option<BatchMemory>,
-    read: impl FnOnce(&Entry) -> Result<Vec<Frame>, ServiceError> + Send + 'static,
+    read: impl FnOnce(&Entry) -> Result<Vec<FrameRequest>, ServiceError> + Send + 'static,
     answer: impl FnOnce(&Entry, Vec<Solved>) -> Result<T, ServiceError> + Send + 'static,
 ) -> Result<(T, Option<BatchMemory>), ServiceError> {
     let metrics = state.inner.metrics.clone();
@@ -140,7 +142,7 @@ fn record(metrics: &Metrics, solved: &[Solved]) {
 async fn solve_in_waves(
     state: &AppState,
     entry: &Arc<Entry>,
-    frames: Vec<Frame>,
+    frames: Vec<FrameRequest>,
     numbering: Numbering,
     parallel: usize,
 ) -> Result<Vec<Solved>, ServiceError> {
@@ -177,10 +179,10 @@ async fn solve_in_waves(
 /// (`--body-limit`). At the other limits' defaults the largest batch (a
 /// 256 MiB binary answer of frames that each carry a rest pose) holds
 /// 24 + 12 + 12 bytes a vertex-frame for 22.4M vertex-frames: 1.07 GB.
-fn batch_held_bytes(entry: &Entry, frames: &[Frame], answer: u64) -> u64 {
+fn batch_held_bytes(entry: &Entry, frames: &[FrameRequest], answer: u64) -> u64 {
     let v = entry.binding().n_vertices() as u64;
     let results: u64 = frames.iter().map(|f| v * if f.gradients { 48 } else { 12 }).sum();
-    let inputs: u64 = frames.iter().map(|f| f.heap_bytes() as u64).sum();
+    let inputs: u64 = frames.iter().map(|f| frame::held_bytes(f) as u64).sum();
     answer + results + inputs
 }
 
@@ -197,7 +199,7 @@ const JSON_BYTES: (u64, u64) = (50, 150);
 /// bounded by the body limit, and a JSON answer is about four times a
 /// binary one.
 /// Returns the answer's bytes.
-fn check_batch_size(entry: &Entry, frames: &[Frame], max: u64, json: bool) -> Result<u64, ServiceError> {
+fn check_batch_size(entry: &Entry, frames: &[FrameRequest], max: u64, json: bool) -> Result<u64, ServiceError> {
     let v = entry.binding().n_vertices() as u64;
     let (point, gradient) = if json { JSON_BYTES } else { BINARY_BYTES };
     let bytes: u64 = frames.iter().map(|f| v * if f.gradients { point + gradient } else { point }).sum();

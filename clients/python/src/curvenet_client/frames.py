@@ -55,7 +55,8 @@ class Frame:
         adjustments: Curvenet Adjustments (server/README.md, "Curvenet
             Adjustments"): mappings with ``curvenet`` and ``knot`` (a pool
             index of a spline endpoint) and optionally ``translate``,
-            ``rotate`` (degrees, XYZ), ``scale``, ``attach_tangents`` and
+            ``rotate`` (degrees, XYZ) or ``orient`` (a ``[w, x, y, z]``
+            quaternion), ``scale``, ``attach_tangents`` and
             ``tangent_translates``, sent as given.
         orientations: also answer every knot's orientation
             (:attr:`FrameResult.knot_orientations`).

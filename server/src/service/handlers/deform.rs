@@ -11,7 +11,6 @@ use curvenet_schema::wire::{DeformRequest, DeformResponse, ErrorBody};
 use super::bindings::bind;
 use crate::error::ServiceError;
 use crate::extract::{Admission, ContentType, JsonOnly, SizedBody, parse_json};
-use crate::frame::Frame;
 use crate::pool::{Numbering, solve_frames};
 use crate::state::{AppState, blocking};
 
@@ -36,7 +35,7 @@ pub(crate) async fn deform(
     let req: DeformRequest = blocking(move || parse_json(&bytes)).await?;
     let (entry, cached) = bind(&state, req.binding).await.map_err(|e| e.context("binding"))?;
     let admission = Admission::one(&state).await?;
-    let frame = Frame::from(req.frame);
+    let frame = req.frame;
     let answer = solve_frames(
         &state,
         admission,

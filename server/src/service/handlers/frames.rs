@@ -20,7 +20,7 @@ use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, Json
 use crate::pool::{HeldBody, Numbering, solve_frames};
 use crate::state::{AppState, BatchMemory};
 
-use crate::frame::{Frame, Solved};
+use crate::frame::Solved;
 /// Deforms one frame of a cached binding (JSON, or the binary form).
 #[utoipa::path(post, path = "/v1/bindings/{id}/frames", tag = "frames", security(("bearer" = [])),
     params(("id" = String, Path, description = "binding id")),
@@ -100,12 +100,12 @@ fn parse(
     bytes: &[u8],
     batch: bool,
     max_batch_bytes: u64,
-) -> Result<Vec<Frame>, ServiceError> {
+) -> Result<Vec<FrameRequest>, ServiceError> {
     let vertices = entry.binding().n_vertices();
     let max_frames = crate::bounded::max_frames(max_batch_bytes, vertices);
     Ok(match form {
         Form::Json if batch => match crate::bounded::frames::<FrameRequest>(bytes, max_frames) {
-            Ok(f) => f.into_iter().map(Frame::from).collect(),
+            Ok(f) => f,
             Err(crate::bounded::BatchError::TooMany(max)) => return Err(crate::bounded::too_many(max, vertices)),
             Err(crate::bounded::BatchError::Malformed(e)) => {
                 return Err(ServiceError::new(Code::MalformedJson, format!("the JSON body is invalid: {e}")));
@@ -117,7 +117,7 @@ fn parse(
                 ));
             }
         },
-        Form::Json => vec![parse_json::<FrameRequest>(bytes)?.into()],
+        Form::Json => vec![parse_json::<FrameRequest>(bytes)?],
         Form::Binary => {
             let b = entry.binding();
             let pools: Vec<usize> = (0..b.n_curvenets()).map(|k| b.n_control_points(k)).collect();

@@ -128,6 +128,7 @@ pub fn spec_of(a: &Adjustment) -> AdjustmentSpec {
         knot: a.knot,
         translate: Some(a.translate),
         rotate: Some(euler_of(&a.rotate)),
+        orient: None,
         scale: Some(a.scale),
         attach_tangents: Some(a.attach_tangents),
         tangent_translates: a.tangent_translates.clone(),
@@ -136,8 +137,8 @@ pub fn spec_of(a: &Adjustment) -> AdjustmentSpec {
 
 /// The frame's adjustments: the stage's, but for the knots the user
 /// adjusts, then the user's.
-pub fn compose(stage: Vec<Adjustment>, user: &[Adjustment]) -> Vec<Adjustment> {
-    let mut out: Vec<Adjustment> =
+pub fn compose(stage: Vec<AdjustmentSpec>, user: &[AdjustmentSpec]) -> Vec<AdjustmentSpec> {
+    let mut out: Vec<AdjustmentSpec> =
         stage.into_iter().filter(|s| !user.iter().any(|u| u.curvenet == s.curvenet && u.knot == s.knot)).collect();
     out.extend(user.iter().cloned());
     out
@@ -260,11 +261,12 @@ mod tests {
     /// The user's adjustment replaces the stage's of the same knot only.
     #[test]
     fn the_users_adjustment_replaces_the_stages_of_its_knot() {
-        let stage = vec![Adjustment::new(0, 3).with_translate([1.0, 0.0, 0.0]), Adjustment::new(0, 7)];
-        let user = [Adjustment::new(0, 3).with_translate([0.0, 2.0, 0.0])];
+        let spec = |a: Adjustment| AdjustmentSpec::from(&a);
+        let stage = vec![spec(Adjustment::new(0, 3).with_translate([1.0, 0.0, 0.0])), spec(Adjustment::new(0, 7))];
+        let user = [spec(Adjustment::new(0, 3).with_translate([0.0, 2.0, 0.0]))];
         let out = compose(stage, &user);
         assert_eq!(out.len(), 2);
         assert_eq!((out[0].knot, out[1].knot), (7, 3));
-        assert_eq!(out[1].translate, [0.0, 2.0, 0.0]);
+        assert_eq!(out[1].translate, Some([0.0, 2.0, 0.0]));
     }
 }

@@ -30,7 +30,7 @@
 //! the application state holds):
 //!
 //! ```text
-//! stage.rs      ViewerStage, StageFrame, FrameSource: the stages opened
+//! stage.rs      ViewerStage, FrameSource: the stages opened
 //! views.rs      the serialized views and requests
 //! geometry.rs   binding and frame geometry, read from core (ViewerData, ViewerFrame)
 //! refusal.rs    a refused stage, rebuilt through core for drawing (ViewerRefusal)
@@ -52,6 +52,7 @@
 
 use std::sync::Arc;
 
+use crate::frame::CoreFrame;
 use axum::Json;
 use axum::extract::State;
 use axum::http::{HeaderValue, header};
@@ -70,7 +71,7 @@ mod views;
 
 pub use adjust::StageAdjustment;
 pub use highlight::Highlight;
-pub use stage::{FrameSource, StageFrame, ViewerStage};
+pub use stage::{FrameSource, ViewerStage};
 pub use views::{
     CageView, CurvenetView, CutView, MeshView, PoseView, RestView, SketchView, ViewerAdjustRequest, ViewerAdjustment,
     ViewerData, ViewerExportRequest, ViewerFrame, ViewerRefusal, ViewerStageBinding, ViewerStageInfo, ViewerStages,
@@ -79,7 +80,6 @@ pub use views::{
 use crate::cache::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
-use crate::frame::Frame;
 use crate::pool::{Numbering, solve_frames};
 use crate::state::{AppState, blocking};
 
@@ -315,23 +315,24 @@ fn frame_time(stage: &ViewerStage, k: usize) -> Result<f64, ServiceError> {
     })
 }
 
-/// The user's adjustments as solved (see `adjust::layer_adjustment`),
-/// checked against the binding: a bad one is refused naming
-/// `adjustments[i]`, its curvenet and knot.
+/// The user's adjustments as solved (see `adjust::layer_adjustment`: as
+/// the exported layer stores them), checked against the binding: a bad one
+/// is refused naming `adjustments[i]`, its curvenet and knot.
 fn user_adjustments(
     entry: &Entry,
     stage: &ViewerStage,
     specs: &[AdjustmentSpec],
-) -> Result<Vec<Adjustment>, ServiceError> {
+) -> Result<Vec<AdjustmentSpec>, ServiceError> {
     let user: Vec<Adjustment> = specs
         .iter()
         .map(|s| adjust::layer_adjustment(s, adjust::find(&stage.adjustments, s.curvenet, s.knot)))
         .collect();
+    let user_specs: Vec<AdjustmentSpec> = user.iter().map(AdjustmentSpec::from).collect();
     entry
         .binding()
         .check_adjustments(&user)
-        .map_err(|e| crate::frame::name_adjustment(ServiceError::core(e, Phase::Frame), &user))?;
-    Ok(user)
+        .map_err(|e| crate::frame::name_adjustment(ServiceError::core(e, Phase::Frame), &user_specs))?;
+    Ok(user_specs)
 }
 
 async fn solve_stage_frame(
@@ -351,8 +352,7 @@ async fn solve_stage_frame(
     })
     .await?;
     let context = format!("{} frame {time}", stage.mesh);
-    let mut frame = Frame::from(read.request);
-    frame.adjustments.extend(read.adjustments);
+    let mut frame = read;
     frame.adjustments = adjust::compose(std::mem::take(&mut frame.adjustments), &user);
     // Knot orientations are answered for frames the curvenets are tracked
     // on in the frame's own rest pose: not yet for skinned or caged frames.
@@ -363,7 +363,7 @@ async fn solve_stage_frame(
     for a in &mut view.adjustments {
         let (c, n) = (a.adjustment.curvenet, a.adjustment.knot);
         a.prim = adjust::find(&stage.adjustments, c, n).map(|s| s.data.path.clone());
-        if user.iter().any(|u| u.curvenet == c as usize && u.knot == n) {
+        if user.iter().any(|u| u.curvenet == c && u.knot == n) {
             a.source = "user".into();
         }
     }
@@ -407,7 +407,7 @@ pub(crate) async fn viewer_frame(
     CachedBinding(entry): CachedBinding,
     Admitted(SizedBody(bytes), admission): Admitted<SizedBody>,
 ) -> Result<Json<ViewerFrame>, ServiceError> {
-    let frame = Frame::from(parse_json::<FrameRequest>(&bytes)?);
+    let frame = parse_json::<FrameRequest>(&bytes)?;
     Ok(Json(solve_frame(&state, admission, entry, frame).await?))
 }
 
@@ -419,7 +419,7 @@ async fn solve_frame(
     state: &AppState,
     admission: Admission,
     entry: Arc<Entry>,
-    frame: Frame,
+    frame: FrameRequest,
 ) -> Result<ViewerFrame, ServiceError> {
     let poses = frame.clone();
     solve_frames(
@@ -432,12 +432,12 @@ async fn solve_frame(
         move |entry, solved| {
             let solved =
                 solved.into_iter().next().ok_or_else(|| ServiceError::internal("a frame solved to nothing"))?;
-            let posed: Vec<Option<&[[f64; 3]]>> = poses.posed.iter().map(|p| p.as_deref()).collect();
-            let pose = entry.deformer.pose(&poses.core(&posed)).map_err(|e| ServiceError::core(e, Phase::Frame))?;
+            let parts = CoreFrame::new(&poses);
+            let pose = entry.deformer.pose(&parts.frame(&poses)).map_err(|e| ServiceError::core(e, Phase::Frame))?;
             geometry::frame_view(
                 &entry.deformer,
                 &pose,
-                &poses.adjustments,
+                parts.adjustments(),
                 &solved.points,
                 solved.solve_ms,
                 solved.knot_orientations,

@@ -5,31 +5,17 @@
 
 use std::sync::{Arc, Mutex};
 
-use curvenet_core::Adjustment;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
 
 use super::adjust::StageAdjustment;
 
 /// Reads frame `k` of a stage opened in the viewer (the stage's k-th time
-/// code): posed pools, the rest pose, blend-shape weights and the stage's
-/// Curvenet Adjustments at that time. A reader that fails names the frame
-/// and the prim.
-pub type FrameSource = Arc<dyn Fn(usize) -> Result<StageFrame, String> + Send + Sync>;
-
-/// A frame of a stage opened in the viewer, as read from the stage.
-#[derive(Debug, Clone, Default)]
-pub struct StageFrame {
-    pub request: FrameRequest,
-    /// The stage's Curvenet Adjustments at this frame (core's: a rotate
-    /// may be a quaternion), applied after the request's own.
-    pub adjustments: Vec<Adjustment>,
-}
-
-impl From<FrameRequest> for StageFrame {
-    fn from(request: FrameRequest) -> Self {
-        Self { request, adjustments: Vec::new() }
-    }
-}
+/// code) as the one frame type: posed pools, the rest pose, blend-shape
+/// weights, the rig's and cage's edits and the stage's Curvenet
+/// Adjustments at that time (a prim's `xformOp:orient` as `orient`, so the
+/// adjustment is the bake's bit for bit). A reader that fails names the
+/// frame and the prim.
+pub type FrameSource = Arc<dyn Fn(usize) -> Result<FrameRequest, String> + Send + Sync>;
 
 /// A deformed mesh of a stage opened in the viewer (`curvenet serve
 /// --open-stage STAGE`): what to bind, and how to read each frame.
