@@ -192,3 +192,67 @@ async fn a_bad_knot_is_refused_naming_it() {
     let (status, text) = post(&client, &format!("{base}/v1/viewer/stages/0/export"), &json!({"adjustment": []})).await;
     assert_eq!(status, 400, "{text}");
 }
+
+/// A user's `orient` (a quaternion) in the viewer is the rotation it
+/// stands for: a stage frame with it shows what the equal Euler `rotate`
+/// shows (to the f32 the layer stores), its export bakes to that, and
+/// `orient` beside `rotate` or a zero quaternion is refused on both routes.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn orient_in_the_viewer_is_the_rotation_it_stands_for() {
+    let dir = common::temp_dir("viewer-adjust", "orient");
+    let server = Served::start(&["--open-stage", SHOT]);
+    let client = reqwest::Client::new();
+    let base = &server.url;
+    let times = floats(&get(&client, &format!("{base}/v1/viewer/stages")).await["stages"][0]["times"]);
+    let k = times.iter().position(|&t| t == 6.0).expect("the shot has frame 6");
+    let euler = [0.0f64, 10.0, 20.0];
+    // rotateXYZ: about X, then Y, then Z, so q = q_z · q_y · q_x.
+    let q = glam::DQuat::from_rotation_z(euler[2].to_radians())
+        * glam::DQuat::from_rotation_y(euler[1].to_radians())
+        * glam::DQuat::from_rotation_x(euler[0].to_radians());
+    let orient = [q.w, q.x, q.y, q.z];
+    let url = format!("{base}/v1/viewer/stages/0/frames/{k}");
+    let solve = |adjustment: Value| {
+        let (client, url) = (client.clone(), url.clone());
+        async move {
+            let (status, text) = post(&client, &url, &json!({"adjustments": [adjustment]})).await;
+            assert_eq!(status, 200, "{text}");
+            points(&serde_json::from_str::<Value>(&text).unwrap()["points"])
+        }
+    };
+    let by_rotate = solve(json!({"curvenet": 0, "knot": 41, "rotate": euler})).await;
+    let by_orient = solve(json!({"curvenet": 0, "knot": 41, "orient": orient})).await;
+    let unrotated = solve(json!({"curvenet": 0, "knot": 41})).await;
+    assert!(max_diff(&by_rotate, &unrotated) > 1e-4, "the rotation moves the surface");
+    let d = max_diff(&by_orient, &by_rotate);
+    assert!(d < 1e-6, "orient and the rotate it equals differ by {d}");
+
+    let body = json!({"frame": k, "adjustments": [{"curvenet": 0, "knot": 41, "orient": orient}]});
+    let (status, layer) = post(&client, &format!("{base}/v1/viewer/stages/0/export"), &body).await;
+    assert_eq!(status, 200, "{layer}");
+    let path = dir.join("orient.usda");
+    std::fs::write(&path, &layer).unwrap();
+    let rebaked = bake(&path, 6.0, &dir, "orient_bake.usda");
+    let d = max_diff(&by_orient, &rebaked);
+    assert!(d < 1e-6, "the export of orient bakes {d} away from the viewer's points");
+
+    for bad in [
+        json!({"curvenet": 0, "knot": 41, "orient": orient, "rotate": euler}),
+        json!({"curvenet": 0, "knot": 41, "orient": [0.0, 0.0, 0.0, 0.0]}),
+    ] {
+        for (url, body) in [
+            (url.clone(), json!({"adjustments": [bad.clone()]})),
+            (format!("{base}/v1/viewer/stages/0/export"), json!({"frame": k, "adjustments": [bad.clone()]})),
+        ] {
+            let (status, text) = post(&client, &url, &body).await;
+            assert_eq!(status, 422, "{url} {bad}: {text}");
+            let e: Value = serde_json::from_str(&text).unwrap();
+            assert_eq!(e["code"], "invalid_parameter", "{text}");
+            assert_eq!(
+                (e["details"]["adjustment"].clone(), e["details"]["control_point"].clone()),
+                (json!(0), json!(41))
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -309,7 +309,7 @@ pub fn solve_group(entry: &Entry, frames: &[FrameRequest]) -> Result<Vec<Solved>
 /// angles, quaternions and tangent translates past 1e15). Both are
 /// `invalid_parameter`, naming `adjustments[i].field` and the adjustment,
 /// curvenet and knot in details.
-fn check_adjustment_values(adjustments: &[AdjustmentSpec]) -> Result<(), ServiceError> {
+pub(crate) fn check_adjustment_values(adjustments: &[AdjustmentSpec]) -> Result<(), ServiceError> {
     for (i, a) in adjustments.iter().enumerate() {
         let refuse = |field: &str, message: String| {
             ServiceError::new(

@@ -104,14 +104,22 @@ fn quat_of(r: &Rotate) -> [f64; 4] {
 
 /// The user's adjustment as the exported layer stores it (see the module
 /// docs): what the viewer solves. `stage` is the stage's adjustment of the
-/// same knot; an absent `attach_tangents` keeps the stage's.
+/// same knot; an absent `attach_tangents` keeps the stage's. The rotation
+/// is the spec's `orient` (a quaternion) or else its `rotate` (Euler
+/// angles), stored in the form the layer keeps for that knot (`quatf` for
+/// a prim that rotates by `xformOp:orient`, else `float3` rotateXYZ). The
+/// spec was checked first (`user_adjustments`: not both, no zero
+/// quaternion).
 pub fn layer_adjustment(spec: &AdjustmentSpec, stage: Option<&StageAdjustment>) -> Adjustment {
     let attach = spec.attach_tangents.or(stage.map(|s| s.data.attach_tangents)).unwrap_or(true);
-    let euler = spec.rotate.unwrap_or([0.0; 3]);
+    let given = match spec.orient {
+        Some(q) => Rotate::Quaternion(q),
+        None => Rotate::EulerXyz(spec.rotate.unwrap_or([0.0; 3])),
+    };
     let rotate = if stage.is_some_and(StageAdjustment::orient) {
-        Rotate::Quaternion(f32s(euler_to_quat(euler)))
+        Rotate::Quaternion(f32s(quat_of(&given)))
     } else {
-        Rotate::EulerXyz(f32s(euler))
+        Rotate::EulerXyz(f32s(euler_of(&given)))
     };
     Adjustment::new(spec.curvenet as usize, spec.knot)
         .with_translate(spec.translate.unwrap_or([0.0; 3]))

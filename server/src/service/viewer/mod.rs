@@ -323,6 +323,14 @@ fn user_adjustments(
     stage: &ViewerStage,
     specs: &[AdjustmentSpec],
 ) -> Result<Vec<AdjustmentSpec>, ServiceError> {
+    // Refused as a frame's adjustments are (both rotations, magnitudes; a
+    // zero quaternion, a bad knot) before they are rounded to the layer's types.
+    crate::frame::check_adjustment_values(specs)?;
+    let given: Vec<Adjustment> = specs.iter().map(Adjustment::from).collect();
+    entry
+        .binding()
+        .check_adjustments(&given)
+        .map_err(|e| crate::frame::name_adjustment(ServiceError::core(e, Phase::Frame), specs))?;
     let user: Vec<Adjustment> = specs
         .iter()
         .map(|s| adjust::layer_adjustment(s, adjust::find(&stage.adjustments, s.curvenet, s.knot)))
