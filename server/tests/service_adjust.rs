@@ -124,6 +124,33 @@ fn solve_reference(posed: &[[f64; 3]], adjustments: &[Adjustment]) -> Vec<[f32; 
     out.iter().map(|p| p.map(|x| x as f32)).collect()
 }
 
+/// Posts one binary frame: `header` (its fields but `arrays`) with `posed`
+/// as curvenet 0's pool in f32; answers the pool as sent (f32, widened),
+/// the answer's JSON header and its points. Asserts 200.
+async fn post_binary(
+    app: &Router,
+    uri: &str,
+    mut header: Value,
+    posed: &[[f64; 3]],
+) -> (Vec<[f64; 3]>, Value, Vec<[f32; 3]>) {
+    header["arrays"] = json!([{"name": "posed", "index": 0, "shape": [posed.len(), 3]}]);
+    let h = serde_json::to_vec(&header).unwrap();
+    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
+    bin.extend_from_slice(&h);
+    let posed32: Vec<[f64; 3]> = posed.iter().map(|p| p.map(|x| x as f32 as f64)).collect();
+    for x in posed32.iter().flatten() {
+        bin.extend_from_slice(&(*x as f32).to_le_bytes());
+    }
+    let req =
+        Request::post(uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
+    let (status, body) = send(app, req).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
+    let rh: Value = serde_json::from_slice(&body[4..4 + hl]).unwrap();
+    let data: Vec<f32> = body[4 + hl..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
+    (posed32, rh, data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
 /// Largest coordinate difference.
 fn max_diff(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     assert_eq!(a.len(), b.len());
@@ -188,23 +215,8 @@ async fn adjusted_frames_match_core_in_json_binary_and_batch() {
     assert_eq!(r.points, unadjusted, "identity adjustments reproduce the unadjusted frame");
 
     // Binary: the same adjustments in the header.
-    let header = json!({"arrays": [{"name": "posed", "index": 0, "shape": [posed.len(), 3]}],
-                        "adjustments": wire, "orientations": true});
-    let h = serde_json::to_vec(&header).unwrap();
-    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
-    bin.extend_from_slice(&h);
-    let posed32: Vec<[f64; 3]> = posed.iter().map(|p| p.map(|x| x as f32 as f64)).collect();
-    for x in posed32.iter().flatten() {
-        bin.extend_from_slice(&(*x as f32).to_le_bytes());
-    }
-    let req =
-        Request::post(&uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
-    let (status, body) = send(&app, req).await;
-    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
-    let rh: Value = serde_json::from_slice(&body[4..4 + hl]).unwrap();
-    let data: Vec<f32> = body[4 + hl..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
-    let points: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let (posed32, rh, points) =
+        post_binary(&app, &uri, json!({"adjustments": wire, "orientations": true}), &posed).await;
     assert_eq!(points, solve_reference(&posed32, &core), "binary: bit for bit after f32 (f32 input)");
     let orientations: Vec<std::collections::BTreeMap<String, [f64; 9]>> =
         serde_json::from_value(rh["knot_orientations"].clone()).expect("knot_orientations in the binary header");
@@ -391,21 +403,7 @@ async fn orient_rotates_by_a_quaternion_and_not_beside_rotate() {
     let r: FrameResponse = serde_json::from_slice(&body).unwrap();
     assert_eq!(r.points, want, "JSON: bit for bit after f32");
 
-    let header = json!({"arrays": [{"name": "posed", "index": 0, "shape": [posed.len(), 3]}], "adjustments": wire});
-    let h = serde_json::to_vec(&header).unwrap();
-    let mut bin = (h.len() as u32).to_le_bytes().to_vec();
-    bin.extend_from_slice(&h);
-    let posed32: Vec<[f64; 3]> = posed.iter().map(|p| p.map(|x| x as f32 as f64)).collect();
-    for x in posed32.iter().flatten() {
-        bin.extend_from_slice(&(*x as f32).to_le_bytes());
-    }
-    let req =
-        Request::post(&uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
-    let (status, body) = send(&app, req).await;
-    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
-    let data: Vec<f32> = body[4 + hl..].chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect();
-    let points: Vec<[f32; 3]> = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let (posed32, _, points) = post_binary(&app, &uri, json!({"adjustments": wire}), &posed).await;
     let want32 = solve_reference(&posed32, &[Adjustment::new(0, knot).with_rotate(Rotate::Quaternion(q))]);
     assert_eq!(points, want32, "binary: bit for bit after f32 (f32 input)");
 
