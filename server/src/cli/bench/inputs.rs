@@ -1,12 +1,12 @@
 //! The bench's inputs: a fixture's mesh and curvenets loaded, a deformer
-//! built and timed, the finger-curl poses, and fixed random right-hand
-//! sides for the triangular solves.
+//! built and timed, the finger-curl poses, one frame solved through the
+//! deformer, and fixed random right-hand sides for the triangular solves.
 
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
 
-use curvenet_core::{Binding, CurvenetInput, Deformer};
+use curvenet_core::{Binding, CurvenetInput, Deformer, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::{CurvenetData, MeshData};
 
@@ -75,6 +75,15 @@ pub(super) fn pose(nets: &[CurvenetData], i: usize, n: usize) -> Vec<Vec<[f64; 3
                 .collect()
         })
         .collect()
+}
+
+/// Solves one frame through `Deformer::frame` into `out`.
+pub(super) fn solve(
+    deformer: &Deformer,
+    posed: &[Option<&[[f64; 3]]>],
+    out: &mut [[f64; 3]],
+) -> curvenet_core::Result<()> {
+    deformer.frame(&Frame { posed, ..Frame::default() }, out, None)
 }
 
 /// `Binding::solve_in_place::<K>` on fixed random right-hand sides.
