@@ -1,10 +1,15 @@
-//! Halfedge connectivity of a polygon mesh, and the checks that make it one:
-//! manifold edges, manifold vertices, consistent orientation.
+//! Halfedge connectivity, the one structure both the input mesh and the
+//! binding's cut-mesh are navigated by, and the checks that make a polygon
+//! mesh one: manifold edges, manifold vertices, consistent orientation.
 //!
-//! Struct-of-arrays with `u32` handles (geometry-central style). Halfedge
-//! `h` of face `f`'s `k`-th corner runs from corner `k` to corner `k + 1`, so
-//! halfedges of a face are contiguous and in the order of
-//! `PolyMesh::face_vertex_indices`: halfedge `h` *is* face corner `h`.
+//! Struct-of-arrays with `u32` handles (geometry-central style). Faces are
+//! loops of contiguous halfedges: halfedge `h` of face `f`'s `k`-th corner
+//! runs from corner `k` to corner `k + 1`, so for a [`PolyMesh`] the
+//! halfedges are in the order of `PolyMesh::face_vertex_indices` and
+//! halfedge `h` *is* face corner `h`. `next` and `prev` follow from the
+//! loops (no array of their own). The cut-mesh builds the same structure
+//! from its cut-faces with [`Halfedges::from_loops`]: a crack's two
+//! halfedges may bound one face there, which a mesh's never do.
 
 use crate::error::{Error, Result};
 use crate::mesh::PolyMesh;
@@ -12,23 +17,17 @@ use crate::mesh::PolyMesh;
 /// Marks a missing twin (a boundary halfedge).
 pub const INVALID: u32 = u32::MAX;
 
-/// Immutable halfedge connectivity built from a [`PolyMesh`].
+/// Immutable halfedge connectivity: faces as loops of contiguous halfedges.
 #[derive(Debug, Clone)]
 pub struct Halfedges {
     /// Tail vertex of each halfedge (= the face corner's vertex).
     tail: Vec<u32>,
-    /// Next halfedge around the same face.
-    next: Vec<u32>,
     /// Opposite halfedge, or [`INVALID`] on the boundary.
     twin: Vec<u32>,
     /// Face of each halfedge.
     face: Vec<u32>,
     /// First halfedge of each face (`n_faces + 1` entries: face `f` owns `face_start[f]..face_start[f+1]`).
     face_start: Vec<u32>,
-    /// Number of connected components (through shared edges).
-    n_components: usize,
-    /// Component of each face.
-    face_component: Vec<u32>,
 }
 
 impl Halfedges {
@@ -38,7 +37,6 @@ impl Halfedges {
     pub fn new(mesh: &PolyMesh) -> Result<Self> {
         let n_he = mesh.face_vertex_indices().len();
         let mut tail = Vec::with_capacity(n_he);
-        let mut next = Vec::with_capacity(n_he);
         let mut face = Vec::with_capacity(n_he);
         let mut face_start = Vec::with_capacity(mesh.n_faces() + 1);
         for (f, corners) in mesh.faces().enumerate() {
@@ -47,7 +45,6 @@ impl Halfedges {
             let n = corners.len() as u32;
             for k in 0..n {
                 tail.push(corners[k as usize]);
-                next.push(start + (k + 1) % n);
                 face.push(f as u32);
             }
         }
@@ -58,7 +55,11 @@ impl Halfedges {
         // then each vertex's few entries by `(b, h)` — the order a full sort
         // of the triples gives, in linear time (the whole-array sort stood
         // out in the 376k-vertex binding's profile).
-        let head = |h: usize| tail[next[h] as usize];
+        let next = |h: usize| {
+            let f = face[h] as usize;
+            if h as u32 + 1 == face_start[f + 1] { face_start[f] as usize } else { h + 1 }
+        };
+        let head = |h: usize| tail[next(h)];
         let key = |h: usize| {
             let (a, b) = (tail[h], head(h));
             (a.min(b), a.max(b))
@@ -102,10 +103,19 @@ impl Halfedges {
             i = j;
         }
 
-        let mut he = Self { tail, next, twin, face, face_start, n_components: 0, face_component: Vec::new() };
+        let he = Self { tail, twin, face, face_start };
         he.check_manifold_vertices(mesh.n_vertices())?;
-        he.label_components();
         Ok(he)
+    }
+
+    /// The connectivity of faces given as loops, unchecked: face `f` owns
+    /// halfedges `face_start[f]..face_start[f + 1]` in loop order, `tail`,
+    /// `twin` ([`INVALID`] on the boundary) and `face` are per halfedge. For
+    /// structures whose builder guarantees them (the cut-mesh).
+    pub(crate) fn from_loops(tail: Vec<u32>, twin: Vec<u32>, face: Vec<u32>, face_start: Vec<u32>) -> Self {
+        debug_assert!(tail.len() == twin.len() && tail.len() == face.len());
+        debug_assert_eq!(face_start.last().copied(), Some(tail.len() as u32));
+        Self { tail, twin, face, face_start }
     }
 
     /// A vertex is manifold when its incident faces form a single fan: walking
@@ -134,7 +144,7 @@ impl Halfedges {
                 if t == INVALID {
                     break;
                 }
-                h = self.next[t as usize];
+                h = self.next(t);
                 if h == start {
                     break;
                 }
@@ -150,35 +160,6 @@ impl Halfedges {
         Ok(())
     }
 
-    fn label_components(&mut self) {
-        let n_faces = self.n_faces();
-        let mut comp = vec![INVALID; n_faces];
-        let mut stack = Vec::new();
-        let mut n = 0u32;
-        for seed in 0..n_faces {
-            if comp[seed] != INVALID {
-                continue;
-            }
-            comp[seed] = n;
-            stack.push(seed as u32);
-            while let Some(f) = stack.pop() {
-                for h in self.face_halfedges(f) {
-                    let t = self.twin[h as usize];
-                    if t != INVALID {
-                        let g = self.face[t as usize];
-                        if comp[g as usize] == INVALID {
-                            comp[g as usize] = n;
-                            stack.push(g);
-                        }
-                    }
-                }
-            }
-            n += 1;
-        }
-        self.n_components = n as usize;
-        self.face_component = comp;
-    }
-
     pub fn n_halfedges(&self) -> usize {
         self.tail.len()
     }
@@ -191,10 +172,12 @@ impl Halfedges {
     }
     /// Head vertex of `h`.
     pub fn head(&self, h: u32) -> u32 {
-        self.tail[self.next[h as usize] as usize]
+        self.tail[self.next(h) as usize]
     }
+    /// Next halfedge around the face.
     pub fn next(&self, h: u32) -> u32 {
-        self.next[h as usize]
+        let f = self.face[h as usize] as usize;
+        if h + 1 == self.face_start[f + 1] { self.face_start[f] } else { h + 1 }
     }
     /// Previous halfedge around the face.
     pub fn prev(&self, h: u32) -> u32 {
@@ -216,26 +199,70 @@ impl Halfedges {
     pub fn is_boundary(&self, h: u32) -> bool {
         self.twin[h as usize] == INVALID
     }
-    /// Number of connected components (faces connected through shared edges).
-    pub fn n_components(&self) -> usize {
-        self.n_components
-    }
-    /// Component of face `f`.
-    pub fn face_component(&self, f: u32) -> u32 {
-        self.face_component[f as usize]
-    }
 }
 
 impl Halfedges {
     /// Heap bytes held (see [`crate::heap`]).
     pub fn heap_bytes(&self) -> usize {
         use crate::heap::bytes;
-        bytes(&self.tail)
-            + bytes(&self.next)
-            + bytes(&self.twin)
-            + bytes(&self.face)
-            + bytes(&self.face_start)
-            + bytes(&self.face_component)
+        bytes(&self.tail) + bytes(&self.twin) + bytes(&self.face) + bytes(&self.face_start)
+    }
+}
+
+/// The connected components of a [`Halfedges`] (faces connected through
+/// shared edges).
+#[derive(Debug, Clone)]
+pub struct Components {
+    n: usize,
+    /// Component of each face.
+    face_component: Vec<u32>,
+}
+
+impl Components {
+    /// Labels the faces of `he` by connected component.
+    pub fn new(he: &Halfedges) -> Self {
+        let n_faces = he.n_faces();
+        let mut comp = vec![INVALID; n_faces];
+        let mut stack = Vec::new();
+        let mut n = 0u32;
+        for seed in 0..n_faces {
+            if comp[seed] != INVALID {
+                continue;
+            }
+            comp[seed] = n;
+            stack.push(seed as u32);
+            while let Some(f) = stack.pop() {
+                for h in he.face_halfedges(f) {
+                    let t = he.twin(h);
+                    if t != INVALID {
+                        let g = he.face(t);
+                        if comp[g as usize] == INVALID {
+                            comp[g as usize] = n;
+                            stack.push(g);
+                        }
+                    }
+                }
+            }
+            n += 1;
+        }
+        Self { n: n as usize, face_component: comp }
+    }
+
+    /// Number of connected components.
+    pub fn len(&self) -> usize {
+        self.n
+    }
+    /// Whether there are no faces.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+    /// Component of face `f`.
+    pub fn of_face(&self, f: u32) -> u32 {
+        self.face_component[f as usize]
+    }
+    /// Heap bytes held (see [`crate::heap`]).
+    pub fn heap_bytes(&self) -> usize {
+        crate::heap::bytes(&self.face_component)
     }
 }
 
@@ -256,7 +283,7 @@ mod tests {
         assert_eq!(h.head(1), 4);
         assert!(h.is_boundary(0));
         assert_eq!(h.prev(4), 7);
-        assert_eq!(h.n_components(), 1);
+        assert_eq!(Components::new(&h).len(), 1);
     }
 
     #[test]
@@ -267,8 +294,9 @@ mod tests {
         let mut two = tet.to_vec();
         two.extend(tet.iter().map(|v| v + 4));
         let h = he(&[3; 8], &two, 8).unwrap();
-        assert_eq!(h.n_components(), 2);
-        assert_eq!(h.face_component(5), 1);
+        let c = Components::new(&h);
+        assert_eq!(c.len(), 2);
+        assert_eq!(c.of_face(5), 1);
     }
 
     #[test]

@@ -125,18 +125,18 @@ pub(crate) fn classify(
     }
 
     // Components touched by the curvenet.
-    let he = &surface.halfedges;
-    let mut touched = vec![false; he.n_components()];
+    let components = &surface.components;
+    let mut touched = vec![false; components.len()];
     for h in 0..cut.n_halfedges() as u32 {
         if matches!(corner[h as usize], Corner::Constraint(_)) {
-            touched[he.face_component(cut.parent(cut.face(h))) as usize] = true;
+            touched[components.of_face(cut.parent(cut.face(h))) as usize] = true;
         }
     }
-    let mut component_vertices = vec![0usize; he.n_components()];
+    let mut component_vertices = vec![0usize; components.len()];
     let mut vertex_component = vec![INVALID; n_vertices];
     for f in 0..surface.mesh.n_faces() {
         for &v in surface.mesh.face(f) {
-            vertex_component[v as usize] = he.face_component(f as u32);
+            vertex_component[v as usize] = components.of_face(f as u32);
         }
     }
     for &c in &vertex_component {

@@ -14,8 +14,10 @@
 //! per-face loops are then stitched across input edges into one halfedge
 //! mesh, so circulating around a cut-vertex crosses from face to face.
 //!
-//! Halfedges of one cut-face are contiguous, in loop order, so halfedge `h`
-//! is also face corner `h` (the corner at `tail(h)`).
+//! The connectivity is the crate's one halfedge structure,
+//! [`Halfedges`], built from the cut-face loops: halfedges of one cut-face
+//! are contiguous, in loop order, so halfedge `h` is also face corner `h`
+//! (the corner at `tail(h)`).
 
 use rustc_hash::FxHashMap as HashMap;
 
@@ -25,7 +27,7 @@ use super::locate::Location;
 use super::path::{Path, PathMethod, TraceFailure};
 use super::surface::{Surface, segments_cross};
 use crate::error::{Error, Result, SampleRef, SegmentRef};
-use crate::halfedge::INVALID;
+use crate::halfedge::{Halfedges, INVALID};
 use crate::sparse::disjoint_root;
 
 /// Cut-vertex bitmask: the cut-vertex is an input mesh vertex.
@@ -143,18 +145,13 @@ pub struct CutVertex {
 #[derive(Debug, Clone)]
 pub struct CutMesh {
     pub(crate) vertices: Vec<CutVertex>,
-    /// Per halfedge: tail cut-vertex.
-    pub(crate) tail: Vec<u32>,
-    /// Per halfedge: the opposite halfedge (in the same cut-face for a crack), or INVALID on the mesh boundary.
-    pub(crate) twin: Vec<u32>,
-    /// Per halfedge: its cut-face.
-    pub(crate) face: Vec<u32>,
+    /// The cut-faces as halfedge loops over cut-vertices; a halfedge's twin
+    /// is in the same cut-face for a crack, INVALID on the mesh boundary.
+    pub(crate) halfedges: Halfedges,
     /// Per halfedge: the curvenet segment it runs along, or INVALID.
     pub(crate) segment: Vec<u32>,
     /// Per halfedge: whether it runs in the segment's direction.
     pub(crate) forward: Vec<bool>,
-    /// Cut-face `f` owns halfedges `face_start[f]..face_start[f + 1]`.
-    pub(crate) face_start: Vec<u32>,
     /// Parent (input) face of every cut-face.
     pub(crate) parent: Vec<u32>,
     /// The cut-vertex of every sample, or INVALID when it was removed with an island.
@@ -231,7 +228,7 @@ impl CutMesh {
         let component = |loc: Location| {
             let mut faces = Vec::new();
             surface.faces_of(loc, &mut faces);
-            surface.halfedges.face_component(faces[0])
+            surface.components.of_face(faces[0])
         };
         let sample_component: Vec<u32> = sample_loc.iter().map(|&l| component(l)).collect();
         let mut detours = Vec::new();
@@ -367,7 +364,7 @@ impl CutMesh {
         self.vertices.len()
     }
     pub fn n_halfedges(&self) -> usize {
-        self.tail.len()
+        self.halfedges.n_halfedges()
     }
     pub fn n_faces(&self) -> usize {
         self.parent.len()
@@ -375,29 +372,32 @@ impl CutMesh {
     pub fn vertex(&self, v: u32) -> &CutVertex {
         &self.vertices[v as usize]
     }
+    /// The cut-mesh's connectivity (its navigation is also offered below,
+    /// as the cut-mesh's own: `cut.tail(h)` is `cut.halfedges().tail(h)`).
+    pub fn halfedges(&self) -> &Halfedges {
+        &self.halfedges
+    }
     pub fn tail(&self, h: u32) -> u32 {
-        self.tail[h as usize]
+        self.halfedges.tail(h)
     }
     pub fn head(&self, h: u32) -> u32 {
-        self.tail[self.next(h) as usize]
+        self.halfedges.head(h)
     }
     pub fn next(&self, h: u32) -> u32 {
-        let f = self.face[h as usize] as usize;
-        if h + 1 == self.face_start[f + 1] { self.face_start[f] } else { h + 1 }
+        self.halfedges.next(h)
     }
     pub fn prev(&self, h: u32) -> u32 {
-        let f = self.face[h as usize] as usize;
-        if h == self.face_start[f] { self.face_start[f + 1] - 1 } else { h - 1 }
+        self.halfedges.prev(h)
     }
     pub fn twin(&self, h: u32) -> u32 {
-        self.twin[h as usize]
+        self.halfedges.twin(h)
     }
     pub fn face(&self, h: u32) -> u32 {
-        self.face[h as usize]
+        self.halfedges.face(h)
     }
     /// The halfedges (= corners) of cut-face `f`, in loop order.
     pub fn face_halfedges(&self, f: u32) -> std::ops::Range<u32> {
-        self.face_start[f as usize]..self.face_start[f as usize + 1]
+        self.halfedges.face_halfedges(f)
     }
     /// The input face cut-face `f` lies in.
     pub fn parent(&self, f: u32) -> u32 {
@@ -879,12 +879,9 @@ impl<'s> Registry<'s> {
         }
         Ok(CutMesh {
             vertices: self.vertices,
-            tail: out.tail,
-            twin: out.twin,
-            face: out.face,
+            halfedges: Halfedges::from_loops(out.tail, out.twin, out.face, out.face_start),
             segment: out.segment,
             forward: out.forward,
-            face_start: out.face_start,
             parent: out.parent,
             sample_vertex,
             n_cracks: out.n_cracks,
@@ -1139,12 +1136,9 @@ impl CutMesh {
     pub fn heap_bytes(&self) -> usize {
         use crate::heap::bytes;
         bytes(&self.vertices)
-            + bytes(&self.tail)
-            + bytes(&self.twin)
-            + bytes(&self.face)
+            + self.halfedges.heap_bytes()
             + bytes(&self.segment)
             + bytes(&self.forward)
-            + bytes(&self.face_start)
             + bytes(&self.parent)
             + bytes(&self.sample_vertex)
             + bytes(&self.detours)

@@ -120,7 +120,7 @@ fn face_strip(surface: &Surface, a: Location, b: Location) -> Option<(Vec<u32>, 
     surface.faces_of(a, &mut fa);
     surface.faces_of(b, &mut fb);
     let (pa, pb) = (surface.position(a), surface.position(b));
-    if fa.is_empty() || fb.is_empty() || he.face_component(fa[0]) != he.face_component(fb[0]) {
+    if fa.is_empty() || fb.is_empty() || surface.components.of_face(fa[0]) != surface.components.of_face(fb[0]) {
         return None;
     }
     let mut reached: HashMap<u32, Reached> = HashMap::default();

@@ -15,7 +15,7 @@ use glam::{DVec2, DVec3};
 
 use crate::closest_point::ClosestPointBvh;
 use crate::error::{Error, Result};
-use crate::halfedge::{Halfedges, INVALID};
+use crate::halfedge::{Components, Halfedges, INVALID};
 
 use super::locate::{Location, barycentric_2d};
 use crate::mesh::{PolyMesh, bounding_box_diagonal};
@@ -48,6 +48,8 @@ pub struct Surface {
     /// The input faces that were split (see [`Surface::new`]).
     pub(crate) split_faces: Vec<u32>,
     pub(crate) halfedges: Halfedges,
+    /// The connected components of `halfedges`' faces.
+    pub(crate) components: Components,
     pub(crate) points: Vec<DVec3>,
     pub(crate) planes: Vec<FacePlane>,
     /// 2D position of every face corner (indexed like halfedges: corner h of
@@ -138,11 +140,13 @@ impl Surface {
         let mean_edge_length = mesh.mean_edge_length(points);
         let tails: Vec<u32> = (0..halfedges.n_halfedges() as u32).map(|h| halfedges.tail(h)).collect();
         let (vertex_out_start, vertex_out) = crate::sparse::group_by_key(mesh.n_vertices(), &tails);
+        let components = Components::new(&halfedges);
         Ok(Self {
             mesh,
             input_face,
             split_faces,
             halfedges,
+            components,
             points: p,
             planes,
             corners_2d,
@@ -192,6 +196,10 @@ impl Surface {
     }
     pub fn halfedges(&self) -> &Halfedges {
         &self.halfedges
+    }
+    /// The connected components of [`Self::mesh`]'s faces (through shared edges).
+    pub fn components(&self) -> &Components {
+        &self.components
     }
     /// Length of the bounding-box diagonal in the projection pose.
     pub fn diagonal(&self) -> f64 {
@@ -376,6 +384,7 @@ impl Surface {
             + bytes(&self.input_face)
             + bytes(&self.split_faces)
             + self.halfedges.heap_bytes()
+            + self.components.heap_bytes()
             + bytes(&self.points)
             + bytes(&self.planes)
             + bytes(&self.corners_2d)

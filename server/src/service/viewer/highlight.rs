@@ -195,9 +195,9 @@ impl Scene<'_> {
             }
             Error::UntouchedComponent { component, .. } => {
                 if let Some(s) = self.surface {
-                    let he = s.halfedges();
-                    let mut faces: Vec<u32> = (0..he.n_faces() as u32)
-                        .filter(|&f| he.face_component(f) as usize == *component)
+                    let components = s.components();
+                    let mut faces: Vec<u32> = (0..s.mesh().n_faces() as u32)
+                        .filter(|&f| components.of_face(f) as usize == *component)
                         .map(|f| s.input_face(f))
                         .collect();
                     faces.dedup();
