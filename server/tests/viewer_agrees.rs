@@ -1,8 +1,9 @@
 //! The viewer draws what the service answers and what `curvenet bake`
 //! writes (issue #35): for a skinned shot (hand_skinned: a skinned rest pose
-//! per frame), a caged shot (hand_caged: a cage coupled with the skeleton,
-//! skinned in process) and a blend-shaped shot (hand_wave: a blend shape
-//! weighted per frame), every frame of `curvenet serve --open-stage SHOT`'s
+//! per frame), a rigged shot (hand_rigged: a UsdSkel skeleton bound to the
+//! mesh, skinned in process, and a blend shape), a caged shot (hand_caged: a
+//! cage coupled with the skeleton, skinned in process) and a blend-shaped
+//! shot (hand_wave: a blend shape weighted per frame), every frame of `curvenet serve --open-stage SHOT`'s
 //! viewer (`GET /v1/viewer/stages/0/frames/{k}`) has, bit for bit, the
 //! points of
 //!
@@ -21,7 +22,7 @@
 use curvenet_core::{CageFrame, CageRevApproximation, CoupledRig, CoupledWorkspace, PolyMesh, fan_triangles};
 use curvenet_core::{Influences, MAT4_IDENTITY, Mat4, Skeleton, Skin, SkinningMethod, mat4_mul};
 use curvenet_schema::usd::{SkinRig, Stage};
-use curvenet_schema::wire::{FrameRequest, FrameResponse};
+use curvenet_schema::wire::{BlendShapeMode, FrameRequest, FrameResponse};
 use curvenet_schema::{CageData, MeshData};
 use serde_json::Value;
 
@@ -31,6 +32,7 @@ mod common;
 use common::Served;
 
 const SKINNED: &str = "fixtures/shots/hand_skinned/shot.usda";
+const RIGGED: &str = "fixtures/shots/hand_rigged/shot.usda";
 const CAGED: &str = "fixtures/shots/hand_caged/shot.usda";
 const BLEND_SHAPED: &str = "fixtures/shots/hand_wave/shot.usda";
 
@@ -41,7 +43,7 @@ struct Shot {
     mesh: MeshData,
     nets: Vec<curvenet_schema::CurvenetData>,
     reads_rest: bool,
-    /// The skeleton of a caged mesh's rig (the viewer skins only caged meshes).
+    /// The skeleton of a skinned mesh's rig.
     rig: Option<(SkinRig, Skeleton)>,
     cage: Option<CageData>,
 }
@@ -56,16 +58,16 @@ impl Shot {
         for n in &nets {
             assert!(stage.curvenet_adjustments(n).unwrap().is_empty(), "{path}: no Curvenet Adjustments");
         }
-        let reads_rest =
-            !mesh.rest_sample_times.is_empty() || stage.rest_points(&mesh, None).unwrap() != mesh.projection_points;
         let cage = stage.cage(&mesh).unwrap();
-        let rig = match &cage {
-            None => None,
-            Some(_) => stage.skin_rig(&mesh).unwrap().map(|rig| {
-                let skeleton = Skeleton::new(&rig.parents, &rig.bind_transforms).unwrap();
-                (rig, skeleton)
-            }),
-        };
+        let rig = stage.skin_rig(&mesh).unwrap().map(|rig| {
+            let skeleton = Skeleton::new(&rig.parents, &rig.bind_transforms).unwrap();
+            (rig, skeleton)
+        });
+        // A skinned mesh reads its points per frame only when they are
+        // animated; otherwise every frame's rest is its bind pose (the
+        // stage's default points).
+        let reads_rest = !mesh.rest_sample_times.is_empty()
+            || (rig.is_none() && stage.rest_points(&mesh, None).unwrap() != mesh.projection_points);
         Self { stage, mesh, nets, reads_rest, rig, cage }
     }
 
@@ -88,9 +90,19 @@ impl Shot {
     fn frame(&self, time: f64) -> FrameRequest {
         let t = Some(time);
         let posed = self.nets.iter().map(|n| self.stage.posed_pool(n, t).unwrap()).collect();
+        let rest = match (self.reads_rest, &self.rig) {
+            (true, _) => Some(self.stage.rest_points(&self.mesh, t).unwrap()),
+            (false, Some(_)) => Some(self.stage.rest_points(&self.mesh, None).unwrap()),
+            (false, None) => None,
+        };
+        // The shots author no curvenet:blendShapeOrder: UsdSkel's order
+        // (before skinning) for a mesh skinned in process, after the solve
+        // otherwise.
+        let blend_shape_mode = if self.rig.is_some() { BlendShapeMode::Before } else { BlendShapeMode::After };
         let mut frame = FrameRequest {
             posed: Some(posed),
-            rest: self.reads_rest.then(|| self.stage.rest_points(&self.mesh, t).unwrap()),
+            rest,
+            blend_shape_mode,
             blend_shape_weights: (!self.mesh.blend_shapes.is_empty())
                 .then(|| self.stage.blend_shape_weights(&self.mesh, t).unwrap()),
             joint_transforms: self.joint_transforms(time),
@@ -232,6 +244,17 @@ async fn agrees(path: &str, frames: usize) -> f32 {
 async fn a_skinned_shot_is_drawn_as_served_and_baked() {
     let moved = agrees(SKINNED, 12).await;
     assert!(moved > 1e-2, "the skinned frames move ({moved})");
+}
+
+/// A rigged mesh without a cage is skinned by the viewer as the bake skins
+/// it (found by a hostile review: the viewer had read the rig of caged
+/// meshes only, and drew hand_rigged up to 0.40 off the bake).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_rigged_shot_is_drawn_as_served_and_baked() {
+    let shot = Shot::open(RIGGED);
+    assert!(shot.cage.is_none() && shot.rig.is_some(), "hand_rigged: a skeleton, no cage");
+    let moved = agrees(RIGGED, 12).await;
+    assert!(moved > 1e-2, "the rigged frames move ({moved})");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -325,16 +325,9 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
         .into_iter()
         .map(|(m, n, r)| {
             let rig = MeshRig::new(&stage, &m, &n, args.g1_flexible)?;
-            let order = stage.blend_shape_order(&m)?.unwrap_or(match rig {
-                Some(_) => BlendShapeOrder::BeforeSkinning,
-                None => BlendShapeOrder::AfterSolve,
-            });
-            let bind_points = match (&rig, m.rest_sample_times.is_empty()) {
-                (Some(_), true) => Some(stage.rest_points(&m, None)?),
-                _ => None,
-            };
+            let reading = FrameReading::new(&stage, &m, r, rig.is_some())?;
             let cage = stage.cage(&m)?;
-            Ok(Read { mesh: m, nets: n, reads_rest: r, rig, order, bind_points, cage })
+            Ok(Read { mesh: m, nets: n, rig, reading, cage })
         })
         .collect::<CliResult<Vec<_>>>()?;
     for Read { mesh: m, rig, .. } in &inputs {
@@ -518,20 +511,48 @@ pub(super) fn frames(
 struct Read {
     mesh: MeshData,
     nets: Vec<CurvenetData>,
-    reads_rest: bool,
     rig: Option<MeshRig>,
-    order: BlendShapeOrder,
-    bind_points: Option<Vec<[f64; 3]>>,
+    reading: FrameReading,
     cage: Option<CageData>,
 }
 
+/// How a mesh's frames are read from the stage besides its curvenets, joints
+/// and cage: the bake's, and the viewer's for the stages it opens
+/// (`serve --open-stage`), so that the two draw the same frames.
+pub struct FrameReading {
+    /// Whether each frame reads the mesh's `points` at its time as the rest pose.
+    pub reads_rest: bool,
+    /// The rest pose of every frame otherwise, for a mesh skinned in process
+    /// whose `points` have no time samples: its bind pose.
+    pub bind_points: Option<Vec<[f64; 3]>>,
+    /// Where the blend shapes go (`curvenet:blendShapeOrder`; by default
+    /// before skinning for a mesh skinned in process, after the solve otherwise).
+    pub order: BlendShapeOrder,
+}
+
+impl FrameReading {
+    /// `reads_rest` as [`super::deformed_meshes`] found it (the `points` are
+    /// animated or differ from the projection pose); `skinned`: whether the
+    /// mesh is skinned in process (its UsdSkel rig is read).
+    pub fn new(stage: &Stage, mesh: &MeshData, reads_rest: bool, skinned: bool) -> CliResult<Self> {
+        let order = stage.blend_shape_order(mesh)?.unwrap_or(match skinned {
+            true => BlendShapeOrder::BeforeSkinning,
+            false => BlendShapeOrder::AfterSolve,
+        });
+        // A skinned mesh reads its points per frame only when they are animated.
+        let animated = !mesh.rest_sample_times.is_empty();
+        let (reads_rest, bind_points) = match (skinned, animated) {
+            (true, true) => (true, None),
+            (true, false) => (false, Some(stage.rest_points(mesh, None)?)),
+            (false, _) => (reads_rest, None),
+        };
+        Ok(Self { reads_rest, bind_points, order })
+    }
+}
+
 fn bind(read: Read, adjustments: Vec<Vec<AdjustmentData>>) -> CliResult<MeshJob> {
-    let Read { mesh, nets, reads_rest, rig, order, bind_points, cage } = read;
-    // A skinned mesh reads its points per frame only when they are animated.
-    let reads_rest = match &rig {
-        Some(_) => !mesh.rest_sample_times.is_empty(),
-        None => reads_rest,
-    };
+    let Read { mesh, nets, rig, reading, cage } = read;
+    let FrameReading { reads_rest, bind_points, order } = reading;
     let (joints, skinning) = match rig {
         Some(r) => (Some(r.joints), Some(r.skinning)),
         None => (None, None),

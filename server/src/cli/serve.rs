@@ -10,13 +10,14 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use clap::Parser as _;
-use curvenet_schema::usd::{CurvenetSkinning, Stage};
-use curvenet_schema::wire::{AdjustmentSpec, BindingRequest, CurvenetSkinSpec, FrameRequest};
+use curvenet_schema::usd::{BlendShapeOrder, CurvenetSkinning, Stage};
+use curvenet_schema::wire::{AdjustmentSpec, BindingRequest, BlendShapeMode, CurvenetSkinSpec, FrameRequest};
 use curvenet_schema::{AdjustmentData, CurvenetData, MeshData};
 use curvenet_server::{
     AppState, BakeFailure, BakeJob, Baker, Config, Drained, FrameSource, StageAdjustment, ViewerStage,
 };
 
+use super::bake::FrameReading;
 use super::{CliError, CliResult};
 
 #[derive(clap::Args)]
@@ -343,14 +344,15 @@ type FrameQuery = (usize, usize, std::sync::mpsc::Sender<Result<FrameRequest, St
 /// frames on request. Fails, naming the stage and prim, when the stage
 /// breaks the contract.
 pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
-    type Opened = (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String, Vec<Vec<StageAdjustment>>, Vec<Caged>);
+    type Opened =
+        (Vec<(MeshData, Vec<CurvenetData>, bool)>, Vec<f64>, String, Vec<Vec<StageAdjustment>>, Vec<Underneath>);
     let (setup_tx, setup_rx) = std::sync::mpsc::channel::<CliResult<Opened>>();
     let (query_tx, query_rx) = std::sync::mpsc::channel::<FrameQuery>();
     let owned = path.to_path_buf();
     std::thread::Builder::new()
         .name("curvenet-stage-reader".into())
         .spawn(move || {
-            let opened = (|| -> CliResult<(Stage, Opened)> {
+            let opened = (|| -> CliResult<(Stage, Vec<FrameReading>, Opened)> {
                 let stage = Stage::open(&owned)?;
                 let inputs = super::deformed_meshes(&stage, "view")?;
                 let animated = stage.time_code_range().is_some()
@@ -361,11 +363,18 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 let name = stage.path().to_string();
                 let adjustments =
                     inputs.iter().map(|(_, nets, _)| stage_adjustments(&stage, nets)).collect::<CliResult<Vec<_>>>()?;
-                let caged =
-                    inputs.iter().map(|(m, nets, _)| Caged::read(&stage, m, nets)).collect::<CliResult<Vec<_>>>()?;
-                Ok((stage, (inputs, times, name, adjustments, caged)))
+                let underneath = inputs
+                    .iter()
+                    .map(|(m, nets, _)| Underneath::read(&stage, m, nets))
+                    .collect::<CliResult<Vec<_>>>()?;
+                let readings = inputs
+                    .iter()
+                    .zip(&underneath)
+                    .map(|((m, _, r), u)| FrameReading::new(&stage, m, *r, u.skin.is_some()))
+                    .collect::<CliResult<Vec<_>>>()?;
+                Ok((stage, readings, (inputs, times, name, adjustments, underneath)))
             })();
-            let (stage, opened) = match opened {
+            let (stage, readings, opened) = match opened {
                 Ok(x) => x,
                 Err(e) => {
                     let _ = setup_tx.send(Err(e));
@@ -374,7 +383,7 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             };
             let inputs = opened.0.clone();
             let times = opened.1.clone();
-            let caged = opened.4.clone();
+            let underneath = opened.4.clone();
             // Per mesh, per curvenet (binding order): its adjustment prims.
             let per_curvenet: Vec<Vec<Vec<AdjustmentData>>> = inputs
                 .iter()
@@ -390,15 +399,15 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
             }
             // Serve frame reads until every ViewerStage (every sender) is gone.
             for (m, k, answer) in query_rx {
-                let (mesh, nets, reads_rest) = &inputs[m];
+                let (mesh, nets, _) = &inputs[m];
                 let _ = answer.send(
-                    read_frame(&stage, mesh, nets, *reads_rest, &per_curvenet[m], times[k])
-                        .and_then(|f| caged[m].frame(&stage, f, times[k])),
+                    read_frame(&stage, mesh, nets, &readings[m], &per_curvenet[m], times[k])
+                        .and_then(|f| underneath[m].frame(&stage, f, times[k])),
                 );
             }
         })
         .map_err(|e| CliError::Io { context: "starting the stage reader thread".into(), source: e })?;
-    let (inputs, times, name, mut adjustments, caged) = setup_rx.recv().map_err(|_| {
+    let (inputs, times, name, mut adjustments, underneath) = setup_rx.recv().map_err(|_| {
         CliError::Input(format!("{}: the stage reader stopped while opening the stage", path.display()))
     })??;
     let query_tx = std::sync::Mutex::new(query_tx);
@@ -427,7 +436,7 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
                 mesh.path.clone(),
                 curvenets,
                 times.clone(),
-                caged[m].request(BindingRequest::from_stage(&mesh, &nets)),
+                underneath[m].request(BindingRequest::from_stage(&mesh, &nets)),
                 frame,
             )
             .with_adjustments(std::mem::take(&mut adjustments[m]))
@@ -435,19 +444,20 @@ pub fn open_stage(path: &std::path::Path) -> CliResult<Vec<ViewerStage>> {
         .collect())
 }
 
-/// A caged mesh's cage (`rel curvenet:cage`) and, when the mesh is skinned,
-/// its UsdSkel rig, coupled with the cage as `curvenet bake` couples them.
-/// A mesh without a cage is opened without its rig (the viewer does not
-/// skin plain rigged meshes).
+/// The rig layers under a mesh's curvenets, as `curvenet bake` reads them:
+/// its UsdSkel rig when the mesh is skinned (with its curvenets' spline
+/// skinning), and its cage (`rel curvenet:cage`), coupled with the rig when
+/// both are there. Each frame then carries the joint transforms and the
+/// cage's edits, so the viewer draws what the bake writes.
 #[derive(Clone, Default)]
-struct Caged {
+struct Underneath {
     cage: Option<curvenet_schema::CageData>,
     skin: Option<(Arc<super::rig::JointReader>, Vec<CurvenetSkinSpec>)>,
 }
 
-impl Caged {
+impl Underneath {
     fn read(stage: &Stage, mesh: &MeshData, nets: &[CurvenetData]) -> CliResult<Self> {
-        let Some(cage) = stage.cage(mesh)? else { return Ok(Self::default()) };
+        let cage = stage.cage(mesh)?;
         let skin = match stage.skin_rig(mesh)? {
             None => None,
             Some(rig) => {
@@ -472,7 +482,7 @@ impl Caged {
                 Some((Arc::new(super::rig::JointReader { rig, skeleton }), curvenets))
             }
         };
-        Ok(Self { cage: Some(cage), skin })
+        Ok(Self { cage, skin })
     }
 
     /// The binding request with the cage and the rig.
@@ -523,14 +533,14 @@ fn stage_adjustments(stage: &Stage, nets: &[CurvenetData]) -> CliResult<Vec<Stag
 }
 
 /// One mesh's frame at `time`, as the bake reads it: the posed pools (none
-/// for a curvenet without time samples), the rest pose when the mesh's
-/// points are animated or differ from the projection pose, the blend-shape
-/// weights, the curvenets' adjustments (`adjustments[k]`: curvenet `k`'s prims).
+/// for a curvenet without time samples), the rest pose and the blend-shape
+/// weights and order as `reading` says, the curvenets' adjustments
+/// (`adjustments[k]`: curvenet `k`'s prims).
 fn read_frame(
     stage: &Stage,
     mesh: &MeshData,
     nets: &[CurvenetData],
-    reads_rest: bool,
+    reading: &FrameReading,
     adjustments: &[Vec<AdjustmentData>],
     time: f64,
 ) -> Result<FrameRequest, String> {
@@ -539,7 +549,10 @@ fn read_frame(
         .map(|n| stage.posed_pool(n, Some(time)))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| e.to_string())?;
-    let rest = if reads_rest { Some(stage.rest_points(mesh, Some(time)).map_err(|e| e.to_string())?) } else { None };
+    let rest = match reading.reads_rest {
+        true => Some(stage.rest_points(mesh, Some(time)).map_err(|e| e.to_string())?),
+        false => reading.bind_points.clone(),
+    };
     let weights = if mesh.blend_shapes.is_empty() {
         None
     } else {
@@ -550,6 +563,10 @@ fn read_frame(
         posed: Some(posed),
         rest,
         blend_shape_weights: weights,
+        blend_shape_mode: match reading.order {
+            BlendShapeOrder::BeforeSkinning => BlendShapeMode::Before,
+            BlendShapeOrder::AfterSolve => BlendShapeMode::After,
+        },
         adjustments: adjustments.iter().map(AdjustmentSpec::from).collect(),
         ..FrameRequest::default()
     })
