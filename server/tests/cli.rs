@@ -38,6 +38,20 @@ fn inspect_text_names_prims_and_counts() {
     assert!(text.contains("blend shape \"bulge\"") && text.contains("weight 0.5"), "{text}");
 }
 
+/// `--time nan` or `inf` is refused as a usage error (found by a hostile
+/// review: they were read as some sample); a negative time is a time.
+#[test]
+fn inspect_refuses_a_time_that_is_no_time_code() {
+    for bad in ["nan", "inf", "-inf", "soon"] {
+        let out = curvenet(&["inspect", "fixtures/grid/grid.usda", "--time", bad]);
+        assert_eq!(out.status.code(), Some(2), "--time {bad}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--time") && err.contains(bad), "--time {bad}: {err}");
+    }
+    let out = curvenet(&["inspect", "fixtures/grid/grid.usda", "--time", "-1", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 #[test]
 fn bad_input_exits_2_and_names_the_problem() {
     let out = curvenet(&["inspect", "fixtures/does-not-exist.usda"]);

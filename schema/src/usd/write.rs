@@ -239,10 +239,23 @@ fn temp_path(path: &Path) -> PathBuf {
 }
 
 /// `.NAME.tmp-`: what every temporary file of output `path` starts with.
+/// NAME is cut to its first [`TEMP_NAME_BYTES`] bytes (at a character
+/// boundary), so that a legal output name of up to 255 bytes still has a
+/// temporary name within the file system's 255 (the host, pid, counter and
+/// random parts add at most 119). Outputs sharing those bytes share the
+/// prefix; that only lets one's stale-temporary sweep see the other's dead
+/// writers' files, which it may remove as well.
 fn temp_prefix(path: &Path) -> String {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "layer".into());
-    format!(".{name}.tmp-")
+    let mut end = name.len().min(TEMP_NAME_BYTES);
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!(".{}.tmp-", &name[..end])
 }
+
+/// How much of the output's name its temporary file's name keeps.
+const TEMP_NAME_BYTES: usize = 128;
 
 /// This host's name, made safe for a file name (letters, digits, `.`, `_`; at most 64 bytes).
 fn host_name() -> String {
@@ -607,6 +620,23 @@ mod tests {
             assert_eq!(samples[0].0, 1.0);
             assert_eq!(<[f32; 3]>::from(p[1]), [1e-7, -5.5, 3.25], "{ext}");
             assert_eq!(layer.prim("/A").unwrap().unwrap().specifier(), Some(sdf::Specifier::Over));
+        }
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(names.len(), 2, "temporary files left: {names:?}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A legal output name of 255 bytes (found by a hostile review: its
+    /// temporary file's name had overflowed the file system's 255 bytes).
+    #[test]
+    fn the_longest_legal_output_name_is_written() {
+        let dir = temp_dir("long-name");
+        for stem in ["b".repeat(250), "é".repeat(125)] {
+            let path = dir.join(format!("{stem}.usda"));
+            assert!(path.file_name().unwrap().len() >= 254, "{}", path.display());
+            write_points_overrides(&path, prims(), (1.0, 2.0), "").unwrap();
+            assert!(path.exists());
+            assert!(temp_path(&path).file_name().unwrap().len() <= 255);
         }
         let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(names.len(), 2, "temporary files left: {names:?}");

@@ -48,7 +48,7 @@ pub struct Args {
     #[arg(long)]
     pub prim: Option<String>,
     /// Read posed data at this time code (default: the default value).
-    #[arg(long)]
+    #[arg(long, value_parser = finite_time, allow_hyphen_values = true)]
     pub time: Option<f64>,
     /// Print one JSON document instead of text.
     #[arg(long)]
@@ -192,4 +192,11 @@ fn text(r: &Report) -> String {
         let _ = writeln!(s, "warning: {w}");
     }
     s
+}
+
+/// `--time`: a finite time code (USD has no NaN or infinite time code; a
+/// stage read at one would show whichever sample the reader fell on).
+fn finite_time(s: &str) -> Result<f64, String> {
+    let t: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number"))?;
+    if t.is_finite() { Ok(t) } else { Err(format!("{s} is not a finite time code")) }
 }
