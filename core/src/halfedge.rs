@@ -49,19 +49,15 @@ impl Halfedges {
             }
         }
         face_start.push(n_he as u32);
+        let mut he = Self::from_loops(tail, vec![INVALID; n_he], face, face_start);
 
         // Twins: sort halfedges by undirected edge `(a, b)`, `a < b`: a
         // counting sort on `a` (the mesh's vertex indices are in range),
         // then each vertex's few entries by `(b, h)` — the order a full sort
         // of the triples gives, in linear time (the whole-array sort stood
         // out in the 376k-vertex binding's profile).
-        let next = |h: usize| {
-            let f = face[h] as usize;
-            if h as u32 + 1 == face_start[f + 1] { face_start[f] as usize } else { h + 1 }
-        };
-        let head = |h: usize| tail[next(h)];
         let key = |h: usize| {
-            let (a, b) = (tail[h], head(h));
+            let (a, b) = (he.tail(h as u32), he.head(h as u32));
             (a.min(b), a.max(b))
         };
         let n_vertices = mesh.n_vertices();
@@ -77,7 +73,6 @@ impl Halfedges {
         for v in 0..n_vertices {
             keyed[bucket[v] as usize..bucket[v + 1] as usize].sort_unstable();
         }
-        let mut twin = vec![INVALID; n_he];
         let mut i = 0;
         while i < keyed.len() {
             let mut j = i + 1;
@@ -89,21 +84,20 @@ impl Halfedges {
                 1 => {}
                 2 => {
                     let (h1, h2) = (keyed[i].2 as usize, keyed[i + 1].2 as usize);
-                    if tail[h1] == tail[h2] {
-                        return Err(Error::InconsistentOrientation { a, b, faces: [face[h1], face[h2]] });
+                    if he.tail[h1] == he.tail[h2] {
+                        return Err(Error::InconsistentOrientation { a, b, faces: [he.face[h1], he.face[h2]] });
                     }
-                    twin[h1] = h2 as u32;
-                    twin[h2] = h1 as u32;
+                    he.twin[h1] = h2 as u32;
+                    he.twin[h2] = h1 as u32;
                 }
                 count => {
-                    let faces = keyed[i..j].iter().map(|k| face[k.2 as usize]).collect();
+                    let faces = keyed[i..j].iter().map(|k| he.face[k.2 as usize]).collect();
                     return Err(Error::NonManifoldEdge { a, b, faces, count });
                 }
             }
             i = j;
         }
 
-        let he = Self { tail, twin, face, face_start };
         he.check_manifold_vertices(mesh.n_vertices())?;
         Ok(he)
     }

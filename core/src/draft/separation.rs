@@ -38,37 +38,14 @@ pub(super) fn pinched(
         }
         lengths.push(l.length());
     }
-    let cell = |p: DVec3| ((p / sep).floor()).as_i64vec3();
-    let mut grid: rustc_hash::FxHashMap<glam::I64Vec3, Vec<u32>> = rustc_hash::FxHashMap::default();
-    for (i, x) in points.iter().enumerate() {
-        grid.entry(cell(x.2)).or_default().push(i as u32);
-    }
-    for (i, a) in points.iter().enumerate() {
-        let c = cell(a.2);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let Some(list) = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))) else { continue };
-                    for &j in list {
-                        let b = &points[j as usize];
-                        if (j as usize) <= i || a.2.distance(b.2) >= sep || !surface.same_sheet(a.3, b.3) {
-                            continue;
-                        }
-                        let apart = if a.0 != b.0 {
-                            f64::INFINITY
-                        } else {
-                            let d = (a.1 - b.1).abs();
-                            if polys[a.0].closed { d.min(lengths[a.0] - d) } else { d }
-                        };
-                        if apart > reach {
-                            return true;
-                        }
-                    }
-                }
-            }
+    let apart = |a: &(usize, f64, DVec3, u32), b: &(usize, f64, DVec3, u32)| {
+        if a.0 != b.0 {
+            return f64::INFINITY;
         }
-    }
-    false
+        let d = (a.1 - b.1).abs();
+        if polys[a.0].closed { d.min(lengths[a.0] - d) } else { d }
+    };
+    first_close_pair(surface, &points, |x| (x.2, x.3), sep, |a, b| (apart(a, b) > reach).then_some(())).is_some()
 }
 
 /// The final check: splines sampled every quarter mean edge and projected
@@ -156,44 +133,74 @@ pub(super) fn check_separation(
             }
             best
         };
-    let cell = |p: DVec3| ((p / delta).floor()).as_i64vec3();
+    let failure = first_close_pair(
+        surface,
+        &samples,
+        |x| (x.2, x.3),
+        delta,
+        |a, b| {
+            let net = along(a, b, &mut knot_distance);
+            if net.is_nan() || net <= reach {
+                return None;
+            }
+            let message = format!(
+                "splines {} ({}) and {} ({}) come within {:.2} mean edges of each other on the surface near {:?}",
+                a.0,
+                labels[a.0 as usize],
+                b.0,
+                labels[b.0 as usize],
+                a.2.distance(b.2) / edge,
+                a.2.to_array()
+            );
+            let mut rings: Vec<usize> = [labels[a.0 as usize], labels[b.0 as usize]]
+                .into_iter()
+                .filter_map(|l| if let Source::Ring(k) = l { Some(k) } else { None })
+                .collect();
+            rings.dedup();
+            Some(Failure { message, rings })
+        },
+    );
+    failure.map_or(Ok(()), Err)
+}
+
+/// The first `found(a, b)` that is `Some`, over the pairs of `items` less
+/// than `radius` apart on one sheet of the surface (see
+/// `TriSurface::same_sheet`); `at` gives an item's position and triangle.
+/// Each pair is visited once, `a` before `b` in `items`, found through a
+/// uniform grid of cell `radius` (each item's own and 26 neighbouring
+/// cells), in the same order every time.
+fn first_close_pair<T, R>(
+    surface: &TriSurface,
+    items: &[T],
+    at: impl Fn(&T) -> (DVec3, u32),
+    radius: f64,
+    mut found: impl FnMut(&T, &T) -> Option<R>,
+) -> Option<R> {
+    let cell = |p: DVec3| ((p / radius).floor()).as_i64vec3();
     let mut grid: rustc_hash::FxHashMap<glam::I64Vec3, Vec<u32>> = rustc_hash::FxHashMap::default();
-    for (i, x) in samples.iter().enumerate() {
-        grid.entry(cell(x.2)).or_default().push(i as u32);
+    for (i, x) in items.iter().enumerate() {
+        grid.entry(cell(at(x).0)).or_default().push(i as u32);
     }
-    for (i, a) in samples.iter().enumerate() {
-        let c = cell(a.2);
+    for (i, a) in items.iter().enumerate() {
+        let (pa, ta) = at(a);
+        let c = cell(pa);
         for dx in -1..=1 {
             for dy in -1..=1 {
                 for dz in -1..=1 {
                     let Some(list) = grid.get(&(c + glam::I64Vec3::new(dx, dy, dz))) else { continue };
                     for &j in list {
-                        let b = &samples[j as usize];
-                        if (j as usize) <= i || a.2.distance(b.2) >= delta || !surface.same_sheet(a.3, b.3) {
+                        let b = &items[j as usize];
+                        let (pb, tb) = at(b);
+                        if (j as usize) <= i || pa.distance(pb) >= radius || !surface.same_sheet(ta, tb) {
                             continue;
                         }
-                        let net = along(a, b, &mut knot_distance);
-                        if net > reach {
-                            let message = format!(
-                                "splines {} ({}) and {} ({}) come within {:.2} mean edges of each other on the surface near {:?}",
-                                a.0,
-                                labels[a.0 as usize],
-                                b.0,
-                                labels[b.0 as usize],
-                                a.2.distance(b.2) / edge,
-                                a.2.to_array()
-                            );
-                            let mut rings: Vec<usize> = [labels[a.0 as usize], labels[b.0 as usize]]
-                                .into_iter()
-                                .filter_map(|l| if let Source::Ring(k) = l { Some(k) } else { None })
-                                .collect();
-                            rings.dedup();
-                            return Err(Failure { message, rings });
+                        if let Some(r) = found(a, b) {
+                            return Some(r);
                         }
                     }
                 }
             }
         }
     }
-    Ok(())
+    None
 }
