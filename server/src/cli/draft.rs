@@ -13,6 +13,7 @@ use curvenet_core::{Draft, DraftError, DraftOptions, Jitter, draft};
 use curvenet_schema::usd::{CurvenetLayer, Stage, WriteError, write_curvenet_layer};
 use serde::Serialize;
 
+use super::units::parse_numbers;
 use super::{CliError, CliResult, check_output_dir};
 
 const AFTER_HELP: &str = "\
@@ -77,21 +78,6 @@ pub struct Args {
     /// Print the curvenet as one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
-}
-
-fn parse_numbers<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    if parts.len() != N {
-        return Err(format!("{s:?}: expected {what}"));
-    }
-    let mut out = [0.0; N];
-    for (o, p) in out.iter_mut().zip(&parts) {
-        *o = p.parse::<f64>().map_err(|_| format!("{p:?} is not a number (expected {what})"))?;
-        if !o.is_finite() {
-            return Err(format!("{p:?} is not finite (expected {what})"));
-        }
-    }
-    Ok(out)
 }
 
 pub fn parse_vector(s: &str) -> Result<[f64; 3], String> {

@@ -197,6 +197,5 @@ fn text(r: &Report) -> String {
 /// `--time`: a finite time code (USD has no NaN or infinite time code; a
 /// stage read at one would show whichever sample the reader fell on).
 fn finite_time(s: &str) -> Result<f64, String> {
-    let t: f64 = s.trim().parse().map_err(|_| format!("{s:?} is not a number"))?;
-    if t.is_finite() { Ok(t) } else { Err(format!("{s} is not a finite time code")) }
+    super::units::parse_numbers(s, "a time code").map(|[t]| t)
 }

@@ -1,5 +1,6 @@
 //! Units on the command line: byte counts with suffixes (`--cache-bytes 2GiB`),
-//! shared by `serve` and `bake`.
+//! shared by `serve` and `bake`, and finite numbers (`--time 3`,
+//! `--normal 0,0,1`), shared by `inspect` and `draft`.
 
 /// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB.
 pub fn parse_bytes(s: &str) -> Result<u64, String> {
@@ -24,6 +25,22 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
         return Err(format!("{s:?} is too large a byte count (at most 8 EiB)"));
     }
     Ok(bytes as u64)
+}
+
+/// Parses `N` comma-separated finite numbers; `what` says what was expected.
+pub fn parse_numbers<const N: usize>(s: &str, what: &str) -> Result<[f64; N], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != N {
+        return Err(format!("{s:?}: expected {what}"));
+    }
+    let mut out = [0.0; N];
+    for (o, p) in out.iter_mut().zip(&parts) {
+        *o = p.parse::<f64>().map_err(|_| format!("{p:?} is not a number (expected {what})"))?;
+        if !o.is_finite() {
+            return Err(format!("{p:?} is not finite (expected {what})"));
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
