@@ -20,11 +20,13 @@ use crate::error::{Error, Result};
 use crate::mesh::check_finite;
 
 /// One blend shape.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct BlendShape {
+    #[serde(with = "crate::persist::pod")]
     offsets: Vec<[f64; 3]>,
     point_indices: Option<Vec<u32>>,
     /// Sub-shapes sorted by weight, including the implicit 0 (empty) and 1 (full).
+    #[serde(with = "crate::persist::pod")]
     weights: Vec<f64>,
     /// Offsets of each sub-shape (index-aligned with `weights`; the rest shape is empty).
     sub_offsets: Vec<Vec<[f64; 3]>>,
@@ -116,7 +118,7 @@ impl BlendShape {
 }
 
 /// The blend shapes of one mesh.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct BlendShapes {
     n_points: usize,
     shapes: Vec<BlendShape>,

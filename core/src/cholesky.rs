@@ -82,26 +82,35 @@ pub struct SymmetricTriplets {
 }
 
 /// `P A Pᵀ = L Lᵀ`, immutable once built, `Send + Sync`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Cholesky {
     n: usize,
     /// `perm[k]` = original index of permuted row `k` (the identity once
     /// the caller renumbered its unknowns: [`Self::into_factor_order`]).
+    #[serde(with = "crate::persist::pod")]
     perm: Vec<u32>,
     /// After [`Self::into_factor_order`]: the order the symbolic analysis
     /// was made in (`renumbered[k]` = the analysed matrix's row of the
     /// caller's row `k`), for [`Self::refactor`]; `None` before.
     renumbered: Option<Vec<u32>>,
     /// L in compressed columns, the diagonal first in each column.
+    #[serde(with = "crate::persist::pod")]
     col_ptr: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     row_idx: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     values: Vec<f64>,
     /// L's strictly lower entries again, in compressed rows ([`Rows`]),
     /// made at the first wide sweep: the forward sweep of a group's
-    /// columns reads them.
+    /// columns reads them. Not stored ([`crate::persist`]): a loaded factor
+    /// makes it again at its first wide sweep.
+    #[serde(skip)]
     rows: std::sync::OnceLock<Rows>,
     /// faer's ordering and symbolic analysis of each block ([`Block`]),
-    /// shared with refactored copies.
+    /// shared with refactored copies. Not stored: empty in a factor read
+    /// back from a store, which [`Self::refactor`] refuses (frames never
+    /// refactor).
+    #[serde(skip)]
     blocks: Arc<[Block]>,
     /// The ordering used ([`Ordering::Amd`] or [`Ordering::Metis`]).
     ordering: Ordering,
@@ -205,6 +214,11 @@ impl Cholesky {
     pub fn refactor(&self, a: &SymmetricTriplets) -> Result<Self> {
         if a.n != self.n {
             return Err(Error::CountMismatch { what: "refactored matrix size", expected: self.n, got: a.n });
+        }
+        if self.blocks.is_empty() && self.n > 0 {
+            return Err(Error::Internal {
+                what: "a factor read back from a store has no symbolic analysis to refactor with".into(),
+            });
         }
         let mat = match &self.renumbered {
             None => to_faer(a)?,
@@ -341,7 +355,7 @@ impl Cholesky {
 }
 
 /// The fill-reducing ordering of the factorisation.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Ordering {
     /// faer's approximate minimum degree.
     Amd,

@@ -45,7 +45,7 @@ pub struct Hit {
     pub distance: f64,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Node {
     min: DVec3,
     max: DVec3,
@@ -59,20 +59,26 @@ struct Node {
 /// An immutable bounding volume hierarchy over the triangles of a surface
 /// (the fan triangles of a polygon mesh, or any triangulation with a parent
 /// face per triangle) in one pose, answering closest-point queries.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ClosestPointBvh {
+    #[serde(with = "crate::persist::pod")]
     points: Vec<DVec3>,
     /// `#T` triangles as vertex indices, in input order.
+    #[serde(with = "crate::persist::pod")]
     triangles: Vec<[u32; 3]>,
     /// The parent face of every triangle, in input order.
+    #[serde(with = "crate::persist::pod")]
     triangle_face: Vec<u32>,
     /// Input triangle index of every leaf slot.
+    #[serde(with = "crate::persist::pod")]
     leaf_triangle: Vec<u32>,
     /// Corner positions of every leaf slot (leaf order, for locality).
     leaf_corners: Vec<[DVec3; 3]>,
     /// Unit vector-area normal of every face (zero for a zero-area face).
+    #[serde(with = "crate::persist::pod")]
     face_normals: Vec<DVec3>,
     /// Vector area of every face.
+    #[serde(with = "crate::persist::pod")]
     face_vector_areas: Vec<DVec3>,
     nodes: Vec<Node>,
 }

@@ -101,6 +101,50 @@ pub struct DeformerInput<'a> {
     pub options: DeformerOptions,
 }
 
+impl DeformerInput<'_> {
+    /// A fixed encoding of everything [`Deformer::new`] builds from (the
+    /// mesh, the curvenets, the blend shapes, the rig, the cage and the
+    /// options, f64 values by their bits), prefixed by the stored format's
+    /// version ([`crate::persist::FORMAT_VERSION`]): equal bytes, equal
+    /// deformers. Hashed, it names a stored binding (`curvenet bake
+    /// --store`). The cancellation flag is not part of it.
+    pub fn content_bytes(&self) -> Vec<u8> {
+        #[derive(serde::Serialize)]
+        struct Content<'a> {
+            format: u32,
+            face_vertex_counts: &'a [u32],
+            face_vertex_indices: &'a [u32],
+            projection_points: &'a [[f64; 3]],
+            curvenets: Vec<(&'a [[u32; 4]], &'a [[f64; 3]], f64)>,
+            blend_shapes: &'a [BlendShape],
+            skinning: &'a Option<Rig>,
+            cage: Option<(&'a [[f64; 3]], &'a [[u32; 3]])>,
+            snap_tolerance: f64,
+            max_projection_distance: f64,
+            lambda: f64,
+            strict: bool,
+            max_segments_per_spline: Option<u32>,
+        }
+        let bind = &self.options.bind;
+        let content = Content {
+            format: crate::persist::FORMAT_VERSION,
+            face_vertex_counts: self.mesh.face_vertex_counts,
+            face_vertex_indices: self.mesh.face_vertex_indices,
+            projection_points: self.mesh.projection_points,
+            curvenets: self.curvenets.iter().map(|c| (c.splines, c.pool, c.sample_density)).collect(),
+            blend_shapes: &self.blend_shapes,
+            skinning: &self.skinning,
+            cage: self.cage.map(|c| (c.points, c.triangles)),
+            snap_tolerance: bind.cut.snap_tolerance,
+            max_projection_distance: bind.cut.max_projection_distance,
+            lambda: bind.lambda,
+            strict: bind.strict,
+            max_segments_per_spline: self.options.max_segments_per_spline,
+        };
+        postcard::to_allocvec(&content).expect("postcard serialises slices and numbers into a Vec")
+    }
+}
+
 /// G¹-flexible spline skinning done over a deformer's frames so far.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct FlexibleStats {
@@ -131,7 +175,7 @@ impl DeformerOptions {
 }
 
 /// Times of a deformer's construction, milliseconds.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct DeformerTimings {
     /// Curvenet analysis and sampling (paper §3), all curvenets.
     pub analysis_ms: f64,
@@ -281,6 +325,29 @@ pub struct Deformer {
     flexible_poses: AtomicU64,
 }
 
+/// What a stored deformer holds ([`Deformer::to_bytes`]): everything but
+/// its workspaces and counters, which a loaded deformer starts afresh.
+#[derive(serde::Serialize)]
+struct StoredRef<'a> {
+    binding: &'a Binding,
+    shapes: &'a BlendShapes,
+    projection_points: &'a [[f64; 3]],
+    timings: &'a DeformerTimings,
+    rig: &'a Option<Rig>,
+    cage: &'a Option<CoupledRig>,
+}
+
+/// [`StoredRef`] read back (the same fields in the same order).
+#[derive(serde::Deserialize)]
+struct Stored {
+    binding: Binding,
+    shapes: BlendShapes,
+    projection_points: Vec<[f64; 3]>,
+    timings: DeformerTimings,
+    rig: Option<Rig>,
+    cage: Option<CoupledRig>,
+}
+
 /// At most this many workspaces are kept for reuse (one per solving thread is enough).
 const KEEP_WORKSPACES: usize = 32;
 
@@ -343,6 +410,44 @@ impl Deformer {
             batches: Mutex::new(Vec::new()),
             rig,
             cage,
+            flexible_iterations: AtomicU64::new(0),
+            flexible_poses: AtomicU64::new(0),
+        })
+    }
+
+    /// The deformer in the stored format ([`crate::persist`]: versioned,
+    /// checksummed, little-endian): the binding, the blend shapes, the
+    /// projection pose and the rig and cage, everything a frame needs.
+    /// [`Self::from_bytes`] reads it back into a deformer whose frames are
+    /// bit for bit this one's.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let stored = StoredRef {
+            binding: &self.binding,
+            shapes: &self.shapes,
+            projection_points: &self.projection_points,
+            timings: &self.timings,
+            rig: &self.rig,
+            cage: &self.cage,
+        };
+        let hint = self.binding.heap_bytes() + self.projection_points.len() * 24;
+        crate::persist::encode(&stored, crate::persist::KIND_DEFORMER, hint)
+    }
+
+    /// A deformer read back from [`Self::to_bytes`]'s bytes. Refuses, with
+    /// the reason, bytes that are truncated, corrupted (checksum), of
+    /// another format version or not a deformer; never panics on any bytes.
+    /// Its timings are those of the original build.
+    pub fn from_bytes(bytes: &[u8]) -> std::result::Result<Self, crate::persist::FormatError> {
+        let s: Stored = crate::persist::decode(bytes, crate::persist::KIND_DEFORMER)?;
+        Ok(Self {
+            binding: s.binding,
+            shapes: s.shapes,
+            projection_points: s.projection_points,
+            timings: s.timings,
+            pool: Mutex::new(Vec::new()),
+            batches: Mutex::new(Vec::new()),
+            rig: s.rig,
+            cage: s.cage,
             flexible_iterations: AtomicU64::new(0),
             flexible_poses: AtomicU64::new(0),
         })

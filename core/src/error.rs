@@ -322,7 +322,7 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// order), the spline within that curvenet, and the segment within the
 /// spline counted from the spline's control point 0. Every error and
 /// warning about a segment uses this numbering.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct SegmentRef {
     pub curvenet: u32,
     pub spline: u32,

@@ -18,15 +18,19 @@ use crate::mesh::PolyMesh;
 pub const INVALID: u32 = u32::MAX;
 
 /// Immutable halfedge connectivity: faces as loops of contiguous halfedges.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Halfedges {
     /// Tail vertex of each halfedge (= the face corner's vertex).
+    #[serde(with = "crate::persist::pod")]
     tail: Vec<u32>,
     /// Opposite halfedge, or [`INVALID`] on the boundary.
+    #[serde(with = "crate::persist::pod")]
     twin: Vec<u32>,
     /// Face of each halfedge.
+    #[serde(with = "crate::persist::pod")]
     face: Vec<u32>,
     /// First halfedge of each face (`n_faces + 1` entries: face `f` owns `face_start[f]..face_start[f+1]`).
+    #[serde(with = "crate::persist::pod")]
     face_start: Vec<u32>,
 }
 
@@ -205,10 +209,11 @@ impl Halfedges {
 
 /// The connected components of a [`Halfedges`] (faces connected through
 /// shared edges).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Components {
     n: usize,
     /// Component of each face.
+    #[serde(with = "crate::persist::pod")]
     face_component: Vec<u32>,
 }
 

@@ -29,6 +29,7 @@ pub mod halfedge;
 pub mod heap;
 pub mod ids;
 pub mod mesh;
+pub mod persist;
 pub mod polygon_laplacian;
 pub mod rig;
 pub mod simd;

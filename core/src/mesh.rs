@@ -11,10 +11,12 @@ use crate::error::{Error, Result};
 /// Construction checks what topology alone can check: counts add up, every
 /// face has at least 3 corners and no repeated corner, every index is below
 /// `n_vertices`. Manifoldness and orientation are checked by the binding.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PolyMesh {
     /// `offsets[f]..offsets[f + 1]` is face `f`'s range in `indices`; `n_faces + 1` entries.
+    #[serde(with = "crate::persist::pod")]
     offsets: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     indices: Vec<u32>,
     n_vertices: usize,
 }

@@ -27,7 +27,7 @@ pub const WEIGHT_SUM_TOLERANCE: f64 = 1e-4;
 /// the mesh's skin, whose skinning of the mesh's points is a frame's rest
 /// pose, and the spline skinning (Liu et al. 2015) of the curvenets that
 /// follow the skeleton.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Rig {
     /// The mesh's influences, `geomBindTransform` and skinning method.
     pub skin: Skin,

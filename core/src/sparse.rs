@@ -4,12 +4,15 @@
 //! frame's data are row-interleaved, so this small kernel is written here.)
 
 /// `nrows × ncols` in compressed rows; duplicates summed at construction.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct Csr {
     nrows: usize,
     ncols: usize,
+    #[serde(with = "crate::persist::pod")]
     row_ptr: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     col: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     val: Vec<f64>,
 }
 

@@ -22,7 +22,7 @@ pub const NORMAL_ALONG_TANGENT: f64 = 1e-6;
 
 /// The neutral-pose part of the knot orientations of one curvenet.
 /// Immutable and `Send + Sync`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct OrientationPlan {
     n_knots: usize,
     n_points: usize,
@@ -31,12 +31,14 @@ pub struct OrientationPlan {
     curves: Vec<CurvePlan>,
     curve_knots: Vec<CurveKnot>,
     /// The tangent control points of every knot (CSR by knot), increasing.
+    #[serde(with = "crate::persist::pod")]
     knot_tangent_start: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     knot_tangents: Vec<u32>,
 }
 
 /// An intersection: its knot and the range of its tangents in `fan_tangents`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct FanPlan {
     knot: u32,
     point: u32,
@@ -46,7 +48,7 @@ struct FanPlan {
 /// One curve end at an intersection: the control point giving its Bézier
 /// end tangent, the neutral unit direction and the fit weight (the neutral
 /// tangent's length).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct FanTangent {
     point: u32,
     direction: DVec3,
@@ -54,7 +56,7 @@ struct FanTangent {
 }
 
 /// A curve and the knots on it that are not intersections.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct CurvePlan {
     curve: u32,
     /// Fan indices of the intersections at the curve's start and end.
@@ -73,7 +75,7 @@ impl CurvePlan {
     }
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 struct CurveKnot {
     knot: u32,
     point: u32,

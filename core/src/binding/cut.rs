@@ -38,7 +38,7 @@ pub const SAMPLE: u8 = 2;
 pub const CROSSING: u8 = 4;
 
 /// What a cut-vertex carries of the curvenet.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum CurvePoint {
     /// Not on the curvenet.
     None,
@@ -76,7 +76,7 @@ impl CutInput<'_> {
 /// (its samples project across a concavity or onto the far side of a thin
 /// part), or whose samples project onto different connected components (no
 /// path exists; the segment is left out of the cut).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Detour {
     /// The segment (global numbering of [`CutInput::segments`]).
     pub segment: u32,
@@ -93,7 +93,7 @@ pub const DETOUR_RATIO: f64 = 3.0;
 pub const DETOUR_EDGES: f64 = 2.0;
 
 /// How the segments' surface paths were found (see [`PathMethod`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct EmbeddingCounts {
     /// Samples projecting to one cut-vertex: nothing to insert.
     pub collapsed: usize,
@@ -131,7 +131,7 @@ impl Default for CutOptions {
 }
 
 /// A cut-vertex.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct CutVertex {
     pub loc: Location,
     /// Position in the projection pose.
@@ -142,19 +142,22 @@ pub struct CutVertex {
 }
 
 /// The cut-mesh. Immutable once built.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CutMesh {
     pub(crate) vertices: Vec<CutVertex>,
     /// The cut-faces as halfedge loops over cut-vertices; a halfedge's twin
     /// is in the same cut-face for a crack, INVALID on the mesh boundary.
     pub(crate) halfedges: Halfedges,
     /// Per halfedge: the curvenet segment it runs along, or INVALID.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) segment: Vec<u32>,
     /// Per halfedge: whether it runs in the segment's direction.
     pub(crate) forward: Vec<bool>,
     /// Parent (input) face of every cut-face.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) parent: Vec<u32>,
     /// The cut-vertex of every sample, or INVALID when it was removed with an island.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) sample_vertex: Vec<u32>,
     pub(crate) n_cracks: usize,
     pub(crate) n_islands_removed: usize,
@@ -174,7 +177,7 @@ pub struct CutMesh {
 /// or a thin part, closest-point projection folds or swaps curves. The
 /// cut-mesh meets them at the cut-vertex as at an intersection, each corner
 /// taking the side of the segment nearest it clockwise.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Touch {
     /// The segment whose path reached the vertex, and the one already there
     /// (global numbering of [`CutInput::segments`]).

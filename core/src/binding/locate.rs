@@ -5,7 +5,7 @@
 use glam::DVec2;
 
 /// Where a point lies on the input mesh.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Location {
     /// At mesh vertex `v`.
     Vertex(u32),

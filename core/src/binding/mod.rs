@@ -101,7 +101,7 @@ impl BindOptions {
 }
 
 /// Timings of the binding stages, in milliseconds.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct BindTimings {
     pub surface_ms: f64,
     pub cutting_ms: f64,
@@ -110,7 +110,7 @@ pub struct BindTimings {
 }
 
 /// Counts describing a binding (for `curvenet inspect --bind` and logs).
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, serde::Serialize, serde::Deserialize)]
 pub struct BindStats {
     pub mesh_vertices: usize,
     pub mesh_faces: usize,
@@ -132,7 +132,7 @@ pub struct BindStats {
 
 /// A curvenet binding: everything a frame solve needs that does not change
 /// per frame.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Binding {
     pub(crate) surface: Surface,
     pub(crate) cut: CutMesh,
@@ -150,9 +150,11 @@ pub struct Binding {
     /// Per-cut-face Laplacians, row-major `n_f × n_f` squares, concatenated
     /// with the faces a rest-pose frame visits first, in its visiting order
     /// ([`rhs::RestFaces::laplacians_in_visiting_order`]).
+    #[serde(with = "crate::persist::pod")]
     pub(crate) face_laplacian: Vec<f64>,
     /// Per cut-face, where its square starts in `face_laplacian` (its end
     /// is the face's size squared further).
+    #[serde(with = "crate::persist::pod")]
     pub(crate) face_laplacian_start: Vec<u32>,
     /// `VᵀL_hC`: unknowns × constraint rows.
     pub(crate) b: Csr,
@@ -160,12 +162,16 @@ pub struct Binding {
     /// The curvenets, as analysed (owned: a frame evaluates their samples and frames).
     pub(crate) layouts: Vec<CurvenetLayout>,
     /// Global sample of every slot.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) slot_sample: Vec<u32>,
     /// Per global sample: its projected position p̌ (its cut-vertex; the
     /// sample itself when removed with an island) and offset q̌ − p̌.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) sample_projection: Vec<DVec3>,
+    #[serde(with = "crate::persist::pod")]
     pub(crate) sample_offset: Vec<DVec3>,
     /// Per crossing row: X̌ − lerp(p̌_lo, p̌_hi, t), the crossing's rest offset from the chord.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) crossing_offset: Vec<DVec3>,
     /// The gradient part of the Poisson right-hand side as a fixed sparse
     /// operator from the gradients to the unknowns (frames in the projection pose; [`rhs::GradientRhs`], built
@@ -178,7 +184,9 @@ pub struct Binding {
     /// Mesh vertices on the curvenet and the constraint rows of their corners
     /// (their output is the mean), CSR by `curve_vertex_start`.
     pub(crate) curve_vertices: Vec<MeshVertex>,
+    #[serde(with = "crate::persist::pod")]
     pub(crate) curve_vertex_start: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     pub(crate) curve_vertex_rows: Vec<u32>,
     /// Per curvenet, per pool point: where it sits over the projection-pose
     /// surface (for tracking the knots to a rest pose).

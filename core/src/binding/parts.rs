@@ -11,6 +11,7 @@ use crate::ids::{ConstraintRow, Unknown};
 /// Something a binding did that the user should know about.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
+#[derive(serde::Serialize, serde::Deserialize)]
 pub enum BindWarning {
     /// Connected components of the mesh touched by no curvenet: their
     /// vertices pass through at the rest pose. One warning for all of
@@ -115,7 +116,7 @@ impl std::fmt::Display for BindWarning {
 }
 
 /// What a corner takes its value from.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub(crate) enum Corner {
     /// Unknown `u` (row of `V`'s column space).
     Unknown(Unknown),
@@ -127,7 +128,7 @@ pub(crate) enum Corner {
 
 /// A constraint row at a segment–edge crossing: interpolates the slots
 /// `lo` (segment tail) and `hi` (segment head) at `t`.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub(crate) struct CrossingRow {
     pub lo: u32,
     pub hi: u32,
@@ -147,7 +148,7 @@ pub(crate) struct CrossingRow {
 /// 1e-3 of the diagonal, and one scaled by 1e-20 come back at full size.
 /// A triangle degenerate at binding (no frame) keeps the offset as it is,
 /// in the mesh's units (`size` 0).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub(crate) struct KnotBinding {
     pub tri: u32,
     pub bary: [f64; 3],
@@ -191,7 +192,7 @@ pub(crate) fn triangle_frame(a: DVec3, b: DVec3, c: DVec3) -> Option<([DVec3; 3]
 }
 
 /// Per-curvenet offsets into the concatenated samples, segments and slots.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub(crate) struct NetRange {
     pub sample: u32,
     pub segment: u32,

@@ -153,15 +153,18 @@ pub(crate) fn bind_knots(surface: &Surface, curvenets: &[&CurvenetLayout]) -> Re
 /// stalled on scattered loads (a third of its samples on one load on the
 /// 94k hand). A frame with its own rest pose has per-frame `r_h` and keeps
 /// the face loop ([`Binding::deform_poisson_rhs`](super::Binding)).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct GradientRhs {
     /// Entries of source `s` (a row of the workspace's `grad9`: below the
     /// unknowns' count an unknown's `f_v`, then the constraint rows' `f_c`):
     /// `start[s]..start[s + 1]`.
+    #[serde(with = "crate::persist::pod")]
     start: Vec<u32>,
     /// Per entry, the unknown it adds to (increasing within a source).
+    #[serde(with = "crate::persist::pod")]
     dst: Vec<u32>,
     /// Per entry, `w_us`.
+    #[serde(with = "crate::persist::pod")]
     weight: Vec<[f64; 3]>,
 }
 
@@ -400,21 +403,25 @@ impl GradientRhs {
 /// unknown corner add nothing and are left out. Every frame visits them in
 /// this one order, so a frame's bits do not depend on how it is solved
 /// (alone or in a group of any size, on any thread).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub(crate) struct RestFaces {
     /// The visited faces.
+    #[serde(with = "crate::persist::pod")]
     pub face: Vec<u32>,
     /// Corners of visited face `i`: `start[i]..start[i + 1]` into `src` and
     /// `tail`, in the face's halfedge order (also the positions of their
     /// `r_h` in the workspace's per-frame array).
+    #[serde(with = "crate::persist::pod")]
     pub start: Vec<u32>,
     /// Per corner, the `grad9` row it reads, or [`RestFaces::NONE`] for a
     /// fixed corner: below the unknowns' count an unknown (the row the
     /// corner also adds to), from there `n_unknowns + r` for constraint
     /// row `r` (which adds to none).
+    #[serde(with = "crate::persist::pod")]
     pub src: Vec<u32>,
     /// Per corner, its cut-vertex (the halfedge's tail), whose rest
     /// position the corner's `r_h` reads.
+    #[serde(with = "crate::persist::pod")]
     pub tail: Vec<u32>,
 }
 

@@ -22,7 +22,7 @@ use crate::mesh::{PolyMesh, bounding_box_diagonal};
 use crate::polygon_laplacian::vector_area;
 
 /// A face's plane: `x ≈ origin + s u + t v`.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, serde::Serialize, serde::Deserialize)]
 pub struct FacePlane {
     pub origin: DVec3,
     pub u: DVec3,
@@ -39,28 +39,36 @@ impl FacePlane {
 }
 
 /// The mesh in the projection pose, prepared for binding. Immutable.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Surface {
     /// The input mesh, with folded faces split into triangles.
     pub(crate) mesh: PolyMesh,
     /// The input face of every face of `mesh`.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) input_face: Vec<u32>,
     /// The input faces that were split (see [`Surface::new`]).
+    #[serde(with = "crate::persist::pod")]
     pub(crate) split_faces: Vec<u32>,
     pub(crate) halfedges: Halfedges,
     /// The connected components of `halfedges`' faces.
     pub(crate) components: Components,
+    #[serde(with = "crate::persist::pod")]
     pub(crate) points: Vec<DVec3>,
     pub(crate) planes: Vec<FacePlane>,
     /// 2D position of every face corner (indexed like halfedges: corner h of
     /// face f is halfedge h).
+    #[serde(with = "crate::persist::pod")]
     pub(crate) corners_2d: Vec<DVec2>,
     /// Triangles as face-corner (halfedge) indices.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) triangles: Vec<[u32; 3]>,
     /// Face `f`'s triangles are `face_tri_start[f]..face_tri_start[f + 1]`.
+    #[serde(with = "crate::persist::pod")]
     pub(crate) face_tri_start: Vec<u32>,
     /// Outgoing halfedges of each vertex (CSR by `vertex_out_start`).
+    #[serde(with = "crate::persist::pod")]
     pub(crate) vertex_out: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     pub(crate) vertex_out_start: Vec<u32>,
     pub(crate) bvh: ClosestPointBvh,
     pub(crate) diagonal: f64,

@@ -61,7 +61,7 @@ use crate::skinning::{Influences, Mat4, Skeleton, Skin, SkinningMethod, inverse,
 pub const LOCALIZATION_EXPONENT: f64 = 0.1;
 
 /// How CageRev treats skinning methods other than LBS (Corda et al. §4.3, last paragraph).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum CageRevApproximation {
     /// CageUp fits the mesh as skinned; CageRev's LBS linearisation is an
     /// approximation for DQS and CoR (exact for LBS).
@@ -99,30 +99,36 @@ pub struct CageTimings {
 }
 
 /// The skeleton side of the coupling.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Skel {
     parents: Vec<Option<u32>>,
     /// `A₀`: the joints at bind, skeleton space.
+    #[serde(with = "crate::persist::pod")]
     joints: Vec<DVec3>,
     /// `Ψ`, `#J × #C` row-major.
+    #[serde(with = "crate::persist::pod")]
     psi: Vec<f64>,
     skin: Skin,
     /// CoR: bind centres (mesh space), the blended vertices and `Λ` rows.
     cor: Option<Cor>,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Cor {
+    #[serde(with = "crate::persist::pod")]
     centers: Vec<[f64; 3]>,
+    #[serde(with = "crate::persist::pod")]
     blended: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     lambda: Vec<f64>,
 }
 
 /// A mesh coupled with a cage (and, optionally, a skeleton and skin).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CoupledRig {
     mvc: Mvc,
     maxvol: MaxVol,
+    #[serde(with = "crate::persist::pod")]
     bind_points: Vec<[f64; 3]>,
     /// `max |base − Φ C₀|` at bind.
     bind_residual: f64,

@@ -28,10 +28,12 @@ use crate::error::Result;
 pub const MAXVOL_TOLERANCE: f64 = 1.01;
 
 /// The chosen rows, `Φ̃⁻¹` and its conditioning.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MaxVol {
+    #[serde(with = "crate::persist::pod")]
     rows: Vec<usize>,
     /// `Φ̃⁻¹`, `#C × #C` row-major.
+    #[serde(with = "crate::persist::pod")]
     inverse: Vec<f64>,
     condition: f64,
     swaps: usize,

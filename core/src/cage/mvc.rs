@@ -62,9 +62,11 @@ const ROW_CHUNK: usize = 1024;
 /// A validated closed cage: a triangle mesh that is closed, edge-manifold
 /// and consistently oriented with outward normals, every vertex used, all
 /// points finite.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Cage {
+    #[serde(with = "crate::persist::pod")]
     points: Vec<[f64; 3]>,
+    #[serde(with = "crate::persist::pod")]
     triangles: Vec<[u32; 3]>,
     diagonal: f64,
 }
@@ -282,10 +284,11 @@ fn angle(a: DVec3, b: DVec3) -> f64 {
 
 /// The mean value coordinates `Φ` (dense `#P × #C`, row-major `f64`) of a
 /// set of points with respect to a [`Cage`].
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Mvc {
     cage: Cage,
     n_points: usize,
+    #[serde(with = "crate::persist::pod")]
     phi: Vec<f64>,
 }
 

@@ -21,7 +21,7 @@ use super::{Mat3, Side};
 use crate::error::{Error, Result};
 
 /// One constraint slot: a sample of a curve seen from one side.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct ConstraintSlot {
     /// The sample (global sample index).
     pub sample: u32,
@@ -37,9 +37,10 @@ pub struct ConstraintSlot {
 }
 
 /// The immutable table of all `n_c` constraint slots (see the module docs).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ConstraintTable {
     slots: Vec<ConstraintSlot>,
+    #[serde(with = "crate::persist::pod")]
     curve_offsets: Vec<u32>,
     n_segments: usize,
 }

@@ -62,7 +62,7 @@ const TINY: f64 = 1e-12;
 
 /// An orthonormal frame with a scale per axis: `B S` with `B = [t b n]`,
 /// `S = diag(l, w, h)`.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct ScaledFrame {
     /// Unit tangent `t` of the segment, in curve direction.
     pub tangent: [f64; 3],

@@ -41,7 +41,7 @@ pub const T_JUNCTION_SIN: f64 = 0.02;
 pub const CORNER_NORMAL_COS: f64 = 0.5;
 
 /// One curve end at an intersection.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct Emanation {
     /// The curve.
     pub curve: u32,
@@ -55,7 +55,7 @@ pub struct Emanation {
 }
 
 /// An intersection with its emanating curve ends in counter-clockwise order.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IntersectionFan {
     point: u32,
     sample: u32,

@@ -19,7 +19,7 @@ pub const COLLAPSE_TOLERANCE: f64 = 1e-10;
 /// sampling plan, the counter-clockwise order of curves at every
 /// intersection, the constraint slots, and the neutral samples and frames.
 /// Immutable and `Send + Sync`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct CurvenetLayout {
     topology: Topology,
     sampling: Sampling,
@@ -27,7 +27,9 @@ pub struct CurvenetLayout {
     curve_ends: CurveEndSlots,
     curve_isolated: Vec<bool>,
     constraints: ConstraintTable,
+    #[serde(with = "crate::persist::pod")]
     neutral_pool: Vec<[f64; 3]>,
+    #[serde(with = "crate::persist::pod")]
     neutral_samples: Vec<[f64; 3]>,
     neutral_frames: Vec<[ScaledFrame; 2]>,
     collapse_length: f64,

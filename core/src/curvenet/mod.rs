@@ -70,7 +70,7 @@ pub const IDENTITY: Mat3 = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 /// A side of a curve segment, in curve direction (see the module docs).
 /// Per-segment pairs such as `[ScaledFrame; 2]` are indexed by `side as usize`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum Side {
     /// The left side, walking along the curve and looking down the surface normal.
     Plus = 0,

@@ -89,7 +89,7 @@ impl SamplingOptions {
 }
 
 /// A segment: two consecutive samples of a curve, in curve direction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct Segment {
     /// `[from, to]` sample indices, in curve direction.
     pub samples: [u32; 2],
@@ -102,18 +102,27 @@ pub struct Segment {
 }
 
 /// The immutable sampling plan of a curvenet (see the module docs).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Sampling {
+    #[serde(with = "crate::persist::pod")]
     splines: Vec<[u32; 4]>,
     n_points: usize,
+    #[serde(with = "crate::persist::pod")]
     spline_segments: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     spline_refinement: Vec<u32>,
     /// First interior sample of every spline.
+    #[serde(with = "crate::persist::pod")]
     spline_interior: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     knot_points: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     point_knot: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     curve_sample_offsets: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     curve_samples: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     curve_segment_offsets: Vec<u32>,
     segments: Vec<Segment>,
     n_samples: usize,

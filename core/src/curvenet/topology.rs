@@ -31,7 +31,7 @@ pub enum EndpointKind {
 }
 
 /// One end of a curve: the control point there and what it is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum CurveEnd {
     /// The curve ends at an intersection (control point index).
     Intersection(u32),
@@ -60,7 +60,7 @@ impl CurveEnd {
 }
 
 /// A spline as traversed by a curve.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct CurveSpline {
     /// The spline index.
     pub spline: u32,
@@ -70,7 +70,7 @@ pub struct CurveSpline {
 
 /// A curve: a chain of splines between labelled endpoints, or an isolated
 /// closed chain.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Curve {
     /// The splines in curve order.
     pub splines: Vec<CurveSpline>,
@@ -96,11 +96,14 @@ impl Curve {
 }
 
 /// The combinatorial analysis of a [`Curvenet`]. Immutable.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Topology {
+    #[serde(with = "crate::persist::pod")]
     valence: Vec<u32>,
     curves: Vec<Curve>,
+    #[serde(with = "crate::persist::pod")]
     intersections: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     anchors: Vec<u32>,
     /// `(curve, position in the curve)` of every spline.
     spline_curve: Vec<(u32, u32)>,

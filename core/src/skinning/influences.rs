@@ -6,10 +6,12 @@ use crate::error::{Error, Result, SkinningError};
 
 /// Validated joint influences of `#P` points (UsdSkel's `jointIndices` /
 /// `jointWeights` primvars with vertex interpolation), `element_size` per point.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Influences {
     element_size: usize,
+    #[serde(with = "crate::persist::pod")]
     indices: Vec<u32>,
+    #[serde(with = "crate::persist::pod")]
     weights: Vec<f64>,
     n_joints: usize,
 }

@@ -51,7 +51,7 @@ use crate::error::{Error, Result};
 use transform::check_finite;
 
 /// How a mesh is skinned (UsdSkel's `skel:skinningMethod`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize)]
 pub enum SkinningMethod {
     /// `classicLinear`: linear blend skinning, the UsdSkel default.
     #[default]
@@ -104,7 +104,7 @@ impl SkinningMethod {
 
 /// The joint hierarchy and bind pose of a skeleton: turns per-frame joint
 /// transforms into skinning transforms.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Skeleton {
     parents: Vec<Option<u32>>,
     inverse_bind: Vec<Mat4>,
@@ -193,7 +193,7 @@ impl Skeleton {
 }
 
 /// A mesh's skinning: its influences, `geomBindTransform` and method.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Skin {
     influences: Influences,
     geom_bind: Mat4,

@@ -142,14 +142,14 @@ impl SplineSkinningOptions {
 }
 
 /// One end of a spline at a knot: the spline and the handle next to the knot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub struct SplineEnd {
     pub spline: u32,
     pub handle: u32,
 }
 
 /// What a junction keeps.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum JunctionKind {
     /// Equal opposite tangents: `u_a' = −u_b'`.
     C1,
@@ -161,7 +161,7 @@ pub enum JunctionKind {
 }
 
 /// A continuity constraint detected at a knot of the neutral curvenet.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Junction {
     /// The knot (pool index).
     pub knot: u32,
@@ -194,7 +194,7 @@ pub struct CurveDistance {
 }
 
 /// A curve point with its quadrature weight, neutral position and joint weights.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct Node {
     spline: u32,
     /// Bernstein basis at the node's parameter.
@@ -206,7 +206,7 @@ struct Node {
     joints: Vec<(u32, f64)>,
 }
 
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct JunctionRow {
     /// Unknown indices of handle a, handle b, knot.
     a: usize,
@@ -220,31 +220,39 @@ struct JunctionRow {
 }
 
 /// The per-frame Schur complement data of the angle constraints.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 struct AngleBlock {
     /// Junction indices of the angle constraints.
+    #[serde(with = "crate::persist::pod")]
     junctions: Vec<usize>,
     /// Unknown indices of the constrained points (handles and knots).
+    #[serde(with = "crate::persist::pod")]
     points: Vec<usize>,
     /// Local index in `points` of (a, b, k) per angle constraint.
     local: Vec<[usize; 3]>,
     /// Constrained inverse columns at `points`: `n_unknowns × points.len()`, row-major.
+    #[serde(with = "crate::persist::pod")]
     zc: Vec<f64>,
 }
 
 /// The precomputed spline skinning of one curvenet (see the module docs).
 /// Immutable, `Send + Sync`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct SplineSkinning {
     n_joints: usize,
+    #[serde(with = "crate::persist::pod")]
     splines: Vec<[u32; 4]>,
     /// The neutral pool in skeleton space (`geomBindTransform` applied).
+    #[serde(with = "crate::persist::pod")]
     neutral: Vec<[f64; 3]>,
     /// Pool index → unknown index (`u32::MAX`: unused by every spline).
+    #[serde(with = "crate::persist::pod")]
     unknown_of: Vec<u32>,
     /// Unknown index → pool index.
+    #[serde(with = "crate::persist::pod")]
     used: Vec<u32>,
     /// Joints with an `O_i`, increasing.
+    #[serde(with = "crate::persist::pod")]
     joints: Vec<u32>,
     /// `O_i` per joint of `joints`: `n_unknowns` rows of 4.
     o: Vec<Vec<[f64; 4]>>,
@@ -257,6 +265,7 @@ pub struct SplineSkinning {
     junctions: Vec<Junction>,
     rows: Vec<JunctionRow>,
     angles: Option<AngleBlock>,
+    #[serde(with = "crate::persist::pod")]
     rest_lengths: Vec<f64>,
     quadrature: Vec<Node>,
     samples: Vec<Node>,
