@@ -3,13 +3,16 @@
 //! built, single frames and groups, on hands of several sizes and the
 //! creature corpus's grid; damaged bytes are refused with their reason.
 
-use curvenet_core::persist::{FormatError, HEADER_BYTES};
 use curvenet_core::{Deformer, Frame, FrameOut};
+use curvenet_core::{STORED_HEADER_BYTES as HEADER_BYTES, StoredFormatError as FormatError};
 use curvenet_e2e::bind_fixture;
 
 /// Frames of the fixture's animation (its posed pools at times 0..n) solved
 /// one by one and as one group, on `d`.
-fn frames(b: &curvenet_e2e::Bound, d: &Deformer, times: &[f64]) -> (Vec<Vec<[f64; 3]>>, Vec<Vec<[f64; 3]>>) {
+/// Each frame's points.
+type Points = Vec<Vec<[f64; 3]>>;
+
+fn frames(b: &curvenet_e2e::Bound, d: &Deformer, times: &[f64]) -> (Points, Points) {
     let pools: Vec<Vec<Option<Vec<[f64; 3]>>>> =
         times.iter().map(|&t| b.nets.iter().map(|n| b.stage.posed_pool(n, Some(t)).unwrap()).collect()).collect();
     let refs: Vec<Vec<Option<&[[f64; 3]]>>> = pools.iter().map(|f| f.iter().map(|p| p.as_deref()).collect()).collect();

@@ -109,16 +109,19 @@ impl DeformerInput<'_> {
     /// deformers. Hashed, it names a stored binding (`curvenet bake
     /// --store`). The cancellation flag is not part of it.
     pub fn content_bytes(&self) -> Vec<u8> {
+        /// A curvenet's splines, pool and density; a cage's points and triangles.
+        type Net<'a> = (&'a [[u32; 4]], &'a [[f64; 3]], f64);
+        type Cage<'a> = (&'a [[f64; 3]], &'a [[u32; 3]]);
         #[derive(serde::Serialize)]
         struct Content<'a> {
             format: u32,
             face_vertex_counts: &'a [u32],
             face_vertex_indices: &'a [u32],
             projection_points: &'a [[f64; 3]],
-            curvenets: Vec<(&'a [[u32; 4]], &'a [[f64; 3]], f64)>,
+            curvenets: Vec<Net<'a>>,
             blend_shapes: &'a [BlendShape],
             skinning: &'a Option<Rig>,
-            cage: Option<(&'a [[f64; 3]], &'a [[u32; 3]])>,
+            cage: Option<Cage<'a>>,
             snap_tolerance: f64,
             max_projection_distance: f64,
             lambda: f64,

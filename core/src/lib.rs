@@ -87,4 +87,8 @@ pub use cholesky::{Cholesky, Ordering as FillOrdering, SymmetricTriplets};
 pub use counters::{cut_mesh_builds, lane_row_groups, numeric_factorizations};
 pub use curvenet::{constraint_gradients_into, deformation_gradients_into, scaled_frames_into};
 pub use ids::Unknown;
+// The stored form of a deformer (`Deformer::to_bytes` / `from_bytes`).
+pub use persist::{
+    FORMAT_VERSION as STORED_FORMAT_VERSION, FormatError as StoredFormatError, HEADER_BYTES as STORED_HEADER_BYTES,
+};
 pub use simd::Simd;

@@ -167,7 +167,7 @@ pub mod pod {
 
         fn visit_bytes<E: Error>(self, bytes: &[u8]) -> Result<Vec<T>, E> {
             let size = std::mem::size_of::<T>();
-            if size == 0 || bytes.len() % size != 0 {
+            if size == 0 || !bytes.len().is_multiple_of(size) {
                 return Err(E::custom(format_args!(
                     "{} bytes are not a whole number of {size}-byte elements",
                     bytes.len()

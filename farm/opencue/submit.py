@@ -4,7 +4,7 @@ layer that waits for all of it (README.md, "Farm").
 
     submit.py SHOT --output OUT.usdc --frames 1-240 [--chunk-size 96]
               [--curvenet /path/to/curvenet] [--show S --shot NAME --user U]
-              [--cuebot HOST] [--print-spec]
+              [--store DIR|s3://bucket/prefix] [--cuebot HOST] [--print-spec]
 
 The job, built with PyOutline and launched without the pycuerun wrapper
 (`use_pycuerun=False`, so the farm hosts need only the curvenet binary):
@@ -14,6 +14,10 @@ The job, built with PyOutline and launched without the pycuerun wrapper
   OUT.chunks/#FRAME_START#-#FRAME_END#.usdc (Cuebot replaces the tokens with
   the chunk's first and last frame), written atomically, the same bytes on
   every rerun.
+* layer `bind` (with `--store`): one frame that binds every mesh once into
+  the binding store (it bakes the first frame into a hidden scratch file and
+  deletes it); `bake` then waits for it (LAYER_ON_LAYER) and every chunk
+  runs with `--store`, reading the bindings instead of binding again.
 * layer `stitch`: one frame, a LAYER_ON_LAYER dependency on `bake`; runs
   `curvenet stitch` over the chunk files of this job (listed explicitly, so
   stale chunks of another submission are never read) with `--frames
@@ -93,6 +97,7 @@ def build_outline(
     service=None,
     cores=None,
     memory=None,
+    store=None,
 ):
     """The outline of one shot bake: layers `bake` (chunked) and `stitch`
     (depends on all of `bake`). SHOT and OUTPUT should be absolute paths
@@ -115,10 +120,11 @@ def build_outline(
         layer_args["cores"] = cores
     if memory:
         layer_args["memory"] = memory
+    store_args = ["--store", store] if store else []
     bake = Shell(
         "bake",
         command=_command(
-            [curvenet, "bake", shot, "--out", f"{chunks}/{CHUNK_FRAMES}.usdc", "--frames", CHUNK_FRAMES]
+            [curvenet, "bake", shot, "--out", f"{chunks}/{CHUNK_FRAMES}.usdc", "--frames", CHUNK_FRAMES, *store_args]
         ),
         range=f"{first}-{last}",
         chunk=chunk_size,
@@ -130,8 +136,21 @@ def build_outline(
         command=_command([curvenet, "stitch", *files, "--frames", f"{first}-{last}", "--out", output]),
         **layer_args,
     )
+    if store:
+        scratch = f"{chunks}/.bind.usdc"
+        bind = ShellCommand(
+            "bind",
+            command=_command(
+                ["sh", "-c", 'set -e; "$0" bake "$1" --out "$2" --frames "$3" --store "$4" --quiet; rm -f -- "$2"',
+                 curvenet, shot, scratch, str(first), store]
+            ),
+            **layer_args,
+        )
+        ol.add_layer(bind)
     ol.add_layer(bake)
     ol.add_layer(stitch)
+    if store:
+        bake.depend_all(bind)
     stitch.depend_all(bake)
     return ol
 
@@ -155,6 +174,8 @@ def main(argv=None):
     p.add_argument("--service", help="OpenCue service for both layers")
     p.add_argument("--cores", type=float, help="cores per task (default: the service's)")
     p.add_argument("--memory", help="memory per task, e.g. 4g (default: the service's)")
+    p.add_argument("--store", help="a binding store on shared storage (a directory or s3://bucket/prefix): "
+                   "a `bind` layer binds each mesh once and every chunk reads it")
     p.add_argument("--cuebot", help="Cuebot host to launch on")
     p.add_argument("--pause", action="store_true", help="launch the job paused")
     p.add_argument("--print-spec", action="store_true", help="print the job spec instead of launching")
@@ -168,7 +189,7 @@ def main(argv=None):
         ol = build_outline(
             shot, output, first, last, args.chunk_size, curvenet=args.curvenet, name=args.name,
             show=args.show, shot_name=args.shot_name, user=args.user, service=args.service,
-            cores=args.cores, memory=args.memory,
+            cores=args.cores, memory=args.memory, store=args.store,
         )
     except ValueError as e:
         print(f"submit.py: error: {e}", file=sys.stderr)

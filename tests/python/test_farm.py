@@ -66,16 +66,30 @@ def _whole_bake(curvenet, out, frames):
     return out.read_bytes()
 
 
-def _openjd_run(curvenet, output, first, last, chunk, shot=SHOT):
+def _openjd_run(curvenet, output, first, last, chunk, shot=SHOT, store=None):
     return subprocess.run(
         [
             _openjd(), "run", str(TEMPLATE), "--step", "Stitch", "--run-dependencies",
             "-p", f"Shot={shot}", "-p", f"Output={output}",
             "-p", f"FrameStart={first}", "-p", f"FrameEnd={last}",
             "-p", f"ChunkSize={chunk}", "-p", f"Curvenet={curvenet}",
+            *(["-p", f"Store={store}"] if store else []),
         ],
         capture_output=True, text=True, timeout=600,
     )
+
+
+def test_openjd_run_with_a_store_binds_once_and_stitches_the_whole_range_bake(curvenet, tmp_path):
+    output = tmp_path / "hand_wave.usdc"
+    store = tmp_path / "store"
+    run = _openjd_run(curvenet, output, 1, 24, 8, store=store)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert output.read_bytes() == _whole_bake(curvenet, tmp_path / "whole.usdc", "1-24")
+    # One binding (the shot's one mesh), written by the Bind step; its scratch file is gone.
+    assert [p.suffix for p in store.iterdir() if not p.name.startswith(".")] == [".cnb"]
+    assert sorted(p.name for p in output.with_name("hand_wave.usdc.chunks").iterdir()) == ["1-8.usdc", "17-24.usdc", "9-16.usdc"]
+    # The chunks read it: their summaries say so (the runner logs each task's stderr).
+    assert (run.stdout + run.stderr).count("(loaded from the store)") == 3, run.stdout[-3000:]
 
 
 # -- Open Job Description -----------------------------------------------------
@@ -93,7 +107,7 @@ def test_openjd_run_stitches_the_chunks_into_the_whole_range_bake(curvenet, tmp_
     run = _openjd_run(curvenet, output, 1, 24, 8)
     log = run.stdout + run.stderr
     assert run.returncode == 0, log
-    assert "Chunks run: 4" in log, log  # three bake chunks and the stitch
+    assert "Chunks run: 5" in log, log  # the bind step (nothing to do without a store), three bake chunks and the stitch
     chunks = sorted(p.name for p in (tmp_path / "shots" / f"hand_wave.{ext}.chunks").iterdir())
     assert chunks == ["1-8.usdc", "17-24.usdc", "9-16.usdc"], chunks
     whole = _whole_bake(curvenet, tmp_path / f"whole.{ext}", "1-24")
@@ -253,6 +267,42 @@ def test_opencue_job_runs_as_cuebot_dispatches_it_into_the_whole_range_bake(curv
     assert sorted(p.name for p in output.with_name("hand_wave.usdc.chunks").iterdir()) == ["1-10.usdc", "11-20.usdc", "21-24.usdc"]
     dispatch(layers["stitch"])
     assert output.read_bytes() == _whole_bake(curvenet, tmp_path / "whole.usdc", f"{first}-{last}")
+
+
+def test_opencue_job_with_a_store_binds_in_its_own_layer_and_bakes_the_whole_range(curvenet, tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    output = tmp_path / "out" / "hand_wave.usdc"
+    output.parent.mkdir()
+    store = tmp_path / "store"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = submit.main([str(SHOT), "-o", str(output), "--frames", "1-24", "--chunk-size", "10",
+                            "--curvenet", str(curvenet), "--store", str(store), "--print-spec"])
+    assert code == 0
+    spec = ET.fromstring(buf.getvalue())
+    _check_against_dtd(spec)
+    layers = {layer.get("name"): layer for layer in spec.find("job/layers")}
+    assert list(layers) == ["bind", "bake", "stitch"]
+    pairs = [(d.findtext("deplayer"), d.findtext("onlayer")) for d in spec.find("depends").findall("depend")]
+    assert sorted(pairs) == [("bake", "bind"), ("stitch", "bake")]
+    assert shlex.split(layers["bake"].findtext("cmd"))[-2:] == ["--store", str(store)]
+    logs = []
+    for name in ("bind", "bake", "stitch"):
+        layer = layers[name]
+        a, _, b = layer.findtext("range").partition("-")
+        frames = list(range(int(a), int(b or a) + 1))
+        size = int(layer.findtext("chunk"))
+        for k in range(0, len(frames), size):
+            part = frames[k:k + size]
+            cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])).replace("#FRAME_END#", str(part[-1]))
+            run = subprocess.run(["/bin/sh", "-c", cmd], capture_output=True, text=True, timeout=300)
+            assert run.returncode == 0, f"{name} frames {part[0]}-{part[-1]}: {run.stderr}"
+            logs.append((name, run.stderr))
+    assert output.read_bytes() == _whole_bake(curvenet, tmp_path / "whole.usdc", "1-24")
+    assert [p.suffix for p in store.iterdir() if not p.name.startswith(".")] == [".cnb"]
+    assert not (output.with_name("hand_wave.usdc.chunks") / ".bind.usdc").exists()
+    bakes = [err for name, err in logs if name == "bake"]
+    assert len(bakes) == 3 and all("(loaded from the store)" in err for err in bakes), bakes
 
 
 def test_submit_refuses_bad_frames_and_outputs(capsys):

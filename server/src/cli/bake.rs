@@ -126,6 +126,16 @@ pub struct Args {
     /// followed (repeatable). The service bakes with its --bake-root dirs.
     #[arg(long = "confine", value_name = "DIR")]
     pub confine: Vec<PathBuf>,
+    /// A binding store shared by a shot's chunks (and with `serve --store`):
+    /// a directory or `s3://bucket/prefix`. Each mesh's binding is read from
+    /// it when there, else built and written to it; the output is the same
+    /// bytes either way.
+    #[arg(long, env = "CURVENET_STORE", value_name = "DIR|URL")]
+    pub store: Option<String>,
+    /// Largest size of the store (least recently used bindings deleted
+    /// beyond it; default: unbounded).
+    #[arg(long, env = "CURVENET_STORE_BYTES", value_parser = super::units::parse_bytes, requires = "store")]
+    pub store_bytes: Option<u64>,
 }
 
 /// An inclusive range of integer time codes.
@@ -184,6 +194,8 @@ struct MeshJob {
     mesh: MeshData,
     nets: Vec<CurvenetData>,
     deformer: Deformer,
+    /// Built here or read from the binding store (`--store`).
+    source: super::store::Source,
     /// Whether each frame's rest pose is read and passed to the solve (the
     /// mesh's `points` are animated or differ from the projection pose).
     reads_rest: bool,
@@ -344,9 +356,13 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
             ));
         }
     }
-    let jobs: Vec<MeshJob> = pool
-        .install(|| inputs.into_par_iter().zip(adjustments).map(|(read, a)| bind(read, a)).collect::<CliResult<_>>())?;
+    let store = args.store.as_deref().map(|s| super::store::BakeStore::open(s, args.store_bytes)).transpose()?;
+    let store = store.as_ref();
+    let jobs: Vec<MeshJob> = pool.install(|| {
+        inputs.into_par_iter().zip(adjustments).map(|(read, a)| bind(read, a, store)).collect::<CliResult<_>>()
+    })?;
     let bind_ms = ms(t_bind.elapsed());
+    let loaded = jobs.iter().filter(|j| j.source == super::store::Source::Loaded).count();
     for job in &jobs {
         for w in job.deformer.binding().warnings() {
             warn(format!("{}: {w}", job.mesh.path));
@@ -416,7 +432,7 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
     if !args.quiet {
         let vertices: usize = jobs.iter().map(|j| j.deformer.n_vertices()).sum();
         eprintln!(
-            "curvenet: baked {} mesh{} ({vertices} vertices) x {} frame{} ({}) to {} in {:.2} s: bind {:.0} ms, \
+            "curvenet: baked {} mesh{} ({vertices} vertices) x {} frame{} ({}) to {} in {:.2} s: bind {:.0} ms{}, \
              mean solve {:.2} ms per frame ({threads} thread{}), read {:.0} ms, write {:.0} ms{}",
             jobs.len(),
             if jobs.len() == 1 { "" } else { "es" },
@@ -426,6 +442,12 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
             args.out.display(),
             started.elapsed().as_secs_f64(),
             bind_ms,
+            match (store, loaded) {
+                (None, _) => String::new(),
+                (Some(_), 0) => " (built, written to the store)".to_string(),
+                (Some(_), k) if k == jobs.len() => " (loaded from the store)".to_string(),
+                (Some(_), k) => format!(" ({k} of {} loaded from the store)", jobs.len()),
+            },
             solve_ns.load(Ordering::Relaxed) as f64 / 1e6 / frames.len() as f64,
             if threads == 1 { "" } else { "s" },
             ms(read_time),
@@ -550,20 +572,24 @@ impl FrameReading {
     }
 }
 
-fn bind(read: Read, adjustments: Vec<Vec<AdjustmentData>>) -> CliResult<MeshJob> {
+fn bind(
+    read: Read,
+    adjustments: Vec<Vec<AdjustmentData>>,
+    store: Option<&super::store::BakeStore>,
+) -> CliResult<MeshJob> {
     let Read { mesh, nets, rig, reading, cage } = read;
     let FrameReading { reads_rest, bind_points, order } = reading;
     let (joints, skinning) = match rig {
         Some(r) => (Some(r.joints), Some(r.skinning)),
         None => (None, None),
     };
-    let deformer = super::deformer(&mesh, &nets, skinning, cage.as_ref())?;
+    let (deformer, source) = super::bind::deformer_in(store, &mesh, &nets, skinning, cage.as_ref())?;
     let mode = match order {
         BlendShapeOrder::BeforeSkinning => BlendShapeMode::Before,
         BlendShapeOrder::AfterSolve => BlendShapeMode::After,
     };
     let has_shapes = !mesh.blend_shapes.is_empty();
-    Ok(MeshJob { mesh, nets, deformer, reads_rest, has_shapes, mode, joints, bind_points, adjustments, cage })
+    Ok(MeshJob { mesh, nets, deformer, source, reads_rest, has_shapes, mode, joints, bind_points, adjustments, cage })
 }
 
 /// Reads one chunk's inputs and checks they are finite; errors name the frame

@@ -105,6 +105,7 @@ mod hand;
 mod inputs;
 mod measure;
 mod ordering;
+mod stored;
 mod tables;
 mod targets;
 mod throughput;

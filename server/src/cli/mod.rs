@@ -3,11 +3,13 @@
 pub mod bake;
 pub mod bench;
 mod bench_batch;
+pub mod bind;
 pub mod draft;
 pub mod inspect;
 pub mod rig;
 pub mod serve;
 pub mod stitch;
+pub mod store;
 pub mod units;
 
 /// A command-line failure. Bad input (exit 2) is kept apart from failures
@@ -94,43 +96,6 @@ pub fn memory_fraction(share: u64) -> Option<u64> {
     let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024 / share.max(1))
-}
-
-/// The deformer of `mesh` (its projection pose, its blend shapes) and its
-/// curvenets, as the bake and `inspect --bind` build it: through
-/// [`curvenet_core::Deformer::new`], each curvenet sampled at its own density
-/// against the mesh's surface, then one binding over all of them; `skinning`
-/// is the rig underneath when the mesh is skinned in process
-/// ([`rig::MeshRig`]). Errors name the blend shape, the curvenet or the mesh.
-pub fn deformer(
-    mesh: &curvenet_schema::MeshData,
-    nets: &[curvenet_schema::CurvenetData],
-    skinning: Option<curvenet_core::Rig>,
-    cage: Option<&curvenet_schema::CageData>,
-) -> CliResult<curvenet_core::Deformer> {
-    use curvenet_core::BlendShape;
-    use curvenet_core::{CurvenetInput, Deformer, DeformerInput};
-    use curvenet_schema::CurvenetData;
-    let n = mesh.projection_points.len();
-    let blend_shapes = mesh
-        .blend_shapes
-        .iter()
-        .map(|s| {
-            let inbetweens = s.inbetweens.iter().map(|i| (i.weight, i.offsets.clone())).collect();
-            BlendShape::new(n, s.offsets.clone(), s.point_indices.clone(), inbetweens)
-                .map_err(|source| CliError::Core { context: s.prim.clone(), source })
-        })
-        .collect::<CliResult<Vec<_>>>()?;
-    let curvenets: Vec<CurvenetInput> = nets.iter().map(CurvenetData::input).collect();
-    let cage = cage.map(|c| curvenet_core::CageInput { points: &c.rest_points, triangles: &c.triangles });
-    let input = DeformerInput { blend_shapes, skinning, cage, ..curvenet_schema::deformer_input(mesh, &curvenets) };
-    Deformer::new(&input).map_err(|e| match e {
-        curvenet_core::Error::Curvenet { curvenet, source } => CliError::Core {
-            context: format!("{} (bound to {})", nets[curvenet as usize].path, mesh.path),
-            source: *source,
-        },
-        source => CliError::Core { context: format!("{} (binding {})", mesh.path, net_list(nets)), source },
-    })
 }
 
 /// `/A/Net, /B/Net`: the curvenets' paths for messages.

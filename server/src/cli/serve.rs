@@ -103,6 +103,16 @@ pub struct Args {
     /// stage on demand.
     #[arg(long = "open-stage", value_name = "STAGE")]
     pub open_stages: Vec<PathBuf>,
+    /// A binding store shared with other replicas and restarts: a directory
+    /// (local or NFS) or `s3://bucket/prefix` (credentials and endpoint from
+    /// the AWS_* environment). Bindings missing from memory are read from
+    /// it before they are built; bindings built here are written to it.
+    #[arg(long, env = "CURVENET_STORE", value_name = "DIR|URL")]
+    pub store: Option<String>,
+    /// Largest size of the store; beyond it the least recently used
+    /// bindings are deleted after a write (default: unbounded).
+    #[arg(long, env = "CURVENET_STORE_BYTES", value_parser = super::units::parse_bytes, requires = "store")]
+    pub store_bytes: Option<u64>,
 }
 
 pub fn run(args: &Args) -> CliResult {
@@ -176,17 +186,24 @@ pub fn run(args: &Args) -> CliResult {
             max_connections: args.max_connections.max(1),
         },
     };
-    let state = AppState::new(config, Some(baker())).map_err(|e| CliError::Input(e.to_string()))?;
-    for path in &args.open_stages {
-        for stage in open_stage(path)? {
-            state.open_in_viewer(stage);
-        }
+    if args.store_bytes == Some(0) {
+        return Err(CliError::Input("--store-bytes must be positive: 0 would delete every binding written".into()));
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .thread_name("curvenet-http")
         .build()
         .map_err(|e| CliError::Io { context: "starting the runtime".into(), source: e })?;
+    let state = match &args.store {
+        None => AppState::new(config, Some(baker())),
+        Some(location) => runtime.block_on(AppState::open(config, Some(baker()), location, args.store_bytes)),
+    }
+    .map_err(|e| CliError::Input(e.to_string()))?;
+    for path in &args.open_stages {
+        for stage in open_stage(path)? {
+            state.open_in_viewer(stage);
+        }
+    }
     let drained = runtime.block_on(async {
         // Listen for the signals before announcing the address: a SIGTERM
         // right after startup must stop the server, not kill the process.
@@ -212,6 +229,7 @@ pub fn run(args: &Args) -> CliResult {
             max_solves = config.max_solves,
             max_batch_bytes = config.max_batch_bytes,
             max_batch_memory = config.max_batch_memory,
+            store = args.store.as_deref().unwrap_or("none"),
             "curvenet serve"
         );
         curvenet_server::run(listener, state, shutdown)

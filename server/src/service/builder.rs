@@ -13,7 +13,7 @@ use curvenet_schema::wire::{
     Warning,
 };
 
-use crate::cache::{Entry, Key, hex};
+use crate::entry::{Entry, Key, hex};
 use crate::error::{Code, Phase, ServiceError};
 use crate::request::EffectiveOptions;
 
@@ -43,14 +43,6 @@ pub fn build(
         })
         .collect::<Result<Vec<_>, _>>()?;
     let n_shapes = blend_shapes.len();
-    // Measured on the shapes as built here: the deformer keeps copies of
-    // them, no larger (a copy's arrays have no spare capacity).
-    let shapes_bytes = if n_shapes == 0 {
-        0
-    } else {
-        blend_shapes.capacity() * std::mem::size_of::<BlendShape>()
-            + blend_shapes.iter().map(BlendShape::heap_bytes).sum::<usize>()
-    };
     let rig = match &req.skin {
         Some(skin) => Some(build_rig(req, skin)?),
         None => None,
@@ -68,32 +60,8 @@ pub fn build(
     let deformer = Deformer::new(&input).map_err(ServiceError::binding)?;
     drop(input);
 
-    // What the entry holds, measured (see `curvenet_core::heap`): the
-    // binding, the shapes, the projection pose, the workspaces frames
-    // reuse (one per solve thread; the first is made now and measured),
-    // the group workspaces batches keep (one per solve thread; see
-    // `cache::Entry::size_bytes`) and the factor's row copy the first batch
-    // makes.
+    let (size_bytes, cage) = measure(&deformer, keep);
     let b = deformer.binding();
-    let workspace_bytes = deformer.prepare_workspace();
-    let keep = keep.max(1);
-    // The cage's `Φ` (`#V × #C`) dominates a caged binding's memory.
-    let cage = deformer.cage().map(|c| CageStats {
-        vertices: c.n_cage_vertices(),
-        triangles: c.n_cage_triangles(),
-        maxvol_rows: c.maxvol_rows().len(),
-        condition: c.condition(),
-        phi_bytes: c.phi_bytes() as u64,
-    });
-    let size_bytes = (b.heap_bytes()
-        + std::mem::size_of::<Binding>()
-        + shapes_bytes
-        + n * std::mem::size_of::<[f64; 3]>()
-        + keep * workspace_bytes
-        + keep * deformer.group_bytes(crate::config::BATCH_FRAMES, workspace_bytes)
-        + b.factor_row_copy_bytes()
-        + ENTRY_OVERHEAD) as u64
-        + cage.as_ref().map_or(0, |c| c.phi_bytes);
     let t = deformer.timings();
     let response = BindingResponse {
         binding_id: hex(&key),
@@ -115,6 +83,39 @@ pub fn build(
         response,
         size_bytes,
     })
+}
+
+/// The bytes an entry of `deformer` holds (counted against the cache) and
+/// its cage's description: the binding, the shapes, the projection pose,
+/// the workspaces frames reuse (one per solve thread, `keep`; the first is
+/// made now and measured), the group workspaces batches keep (one per
+/// solve thread; see `entry::Entry::size_bytes`) and the factor's row copy
+/// the first batch makes (see `curvenet_core::heap`). For a deformer just
+/// built and for one read back from the store alike.
+pub fn measure(deformer: &Deformer, keep: usize) -> (u64, Option<CageStats>) {
+    let b = deformer.binding();
+    let shapes = deformer.blend_shapes();
+    let shapes_bytes = if shapes.is_empty() { 0 } else { shapes.heap_bytes() };
+    let workspace_bytes = deformer.prepare_workspace();
+    let keep = keep.max(1);
+    // The cage's `Φ` (`#V × #C`) dominates a caged binding's memory.
+    let cage = deformer.cage().map(|c| CageStats {
+        vertices: c.n_cage_vertices(),
+        triangles: c.n_cage_triangles(),
+        maxvol_rows: c.maxvol_rows().len(),
+        condition: c.condition(),
+        phi_bytes: c.phi_bytes() as u64,
+    });
+    let size_bytes = (b.heap_bytes()
+        + std::mem::size_of::<Binding>()
+        + shapes_bytes
+        + std::mem::size_of_val(deformer.projection_points())
+        + keep * workspace_bytes
+        + keep * deformer.group_bytes(crate::config::BATCH_FRAMES, workspace_bytes)
+        + b.factor_row_copy_bytes()
+        + ENTRY_OVERHEAD) as u64
+        + cage.as_ref().map_or(0, |c| c.phi_bytes);
+    (size_bytes, cage)
 }
 
 /// The rig of `req` (its `skin`): the mesh's influences and skin, and the

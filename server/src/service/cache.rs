@@ -2,6 +2,12 @@
 //! of the bindings' memory, least recently used evicted first (moka, LRU
 //! policy). Concurrent requests for one new key compute it once.
 //!
+//! With a binding store (`serve --store`, stored.rs), a key missing from
+//! memory is looked up in the store before it is built or answered
+//! unknown, and a binding built here is written to the store before the
+//! post that built it is answered (so a replica that gets the id next finds
+//! it). Concurrent requests for one key load it once, too.
+//!
 //! # The content hash
 //!
 //! A binding id is blake3 over a fixed binary encoding (not the JSON text,
@@ -15,56 +21,16 @@
 
 use std::sync::Arc;
 
-use curvenet_core::{Binding, Deformer};
-use curvenet_schema::wire::{BindingRequest, BindingResponse, CurvenetSkinSpec};
+use curvenet_schema::wire::{BindingRequest, CurvenetSkinSpec};
 use moka::future::Cache;
 use moka::notification::RemovalCause;
 use moka::policy::EvictionPolicy;
 
+use crate::entry::{Entry, Key};
 use crate::error::{Code, ServiceError};
 use crate::metrics::Metrics;
 use crate::request::EffectiveOptions;
-
-/// A binding id: blake3 of the binding's content.
-pub type Key = [u8; 32];
-
-/// One cached binding: its deformer (`curvenet_core::Deformer`: the
-/// binding, the blend shapes, the projection pose and the frame workspaces)
-/// and the answer that described it.
-pub struct Entry {
-    pub id: String,
-    pub topology_hash: String,
-    pub deformer: Deformer,
-    /// The answer to the post that computed it (`cached` false).
-    pub response: BindingResponse,
-    /// Bytes the entry holds, measured when it was built (counted against the
-    /// cache): the deformer with one frame workspace per solve thread, and
-    /// the group workspaces it keeps once frames are solved in groups on it
-    /// (`Deformer::group_bytes`: per solve thread, the service's group size
-    /// of frame workspaces and their interleaved block) and the factor's row
-    /// copy the first group makes (`Binding::factor_row_copy_bytes`).
-    /// Counted from the start: weighing an entry again when its first batch
-    /// allocates them raced with removals (the cache lost count) and let one
-    /// batch evict every other binding.
-    pub size_bytes: u64,
-}
-
-impl Entry {
-    /// The binding (cut-mesh, factor, analysed curvenets).
-    pub fn binding(&self) -> &Binding {
-        self.deformer.binding()
-    }
-
-    /// The mesh in its projection pose.
-    pub fn projection_points(&self) -> &[[f64; 3]] {
-        self.deformer.projection_points()
-    }
-
-    /// Blend shapes of the binding (the length of a frame's weights).
-    pub fn n_shapes(&self) -> usize {
-        self.deformer.blend_shapes().len()
-    }
-}
+use crate::stored::StoredBindings;
 
 /// `cache_too_small`: a binding of `bytes` (measured, or predicted "at least")
 /// does not fit in a cache of `capacity`.
@@ -84,10 +50,11 @@ pub struct BindingCache {
     cache: Cache<Key, Arc<Entry>>,
     capacity_bytes: u64,
     metrics: Arc<Metrics>,
+    stored: Option<StoredBindings>,
 }
 
 impl BindingCache {
-    pub fn new(capacity_bytes: u64, metrics: Arc<Metrics>) -> Self {
+    pub fn new(capacity_bytes: u64, metrics: Arc<Metrics>, stored: Option<StoredBindings>) -> Self {
         let evictions = metrics.cache_evictions.clone();
         let cache = Cache::builder()
             .max_capacity(capacity_bytes / 1024)
@@ -100,38 +67,60 @@ impl BindingCache {
             })
             .build();
         metrics.cache_capacity_bytes.set(capacity_bytes as f64);
-        Self { cache, capacity_bytes, metrics }
+        Self { cache, capacity_bytes, metrics, stored }
     }
 
-    /// The cached binding `key`, if any (counts a hit or a miss).
-    pub async fn get(&self, key: &Key) -> Option<Arc<Entry>> {
-        let e = self.cache.get(key).await;
-        if e.is_some() {
-            self.metrics.cache_hits.increment(1)
-        } else {
-            self.metrics.cache_misses.increment(1)
+    /// `key` from the store, if it holds a good entry that fits the cache.
+    async fn load(&self, key: &Key) -> Option<Entry> {
+        let entry = self.stored.as_ref()?.load(key).await?;
+        if entry.size_bytes > self.capacity_bytes {
+            tracing::warn!(binding_id = %entry.id, bytes = entry.size_bytes, capacity = self.capacity_bytes, "a stored binding does not fit in this replica's cache");
+            return None;
         }
-        e
+        Some(entry)
     }
 
-    /// The binding `key`, computed by `compute` unless cached. Concurrent
-    /// calls for one key run `compute` once; the others wait for it.
-    /// Returns the entry and whether it was cached.
+    /// The cached binding `key`, if any (counts a hit or a miss), or else
+    /// the stored one (then cached).
+    pub async fn get(&self, key: &Key) -> Option<Arc<Entry>> {
+        if let Some(e) = self.cache.get(key).await {
+            self.metrics.cache_hits.increment(1);
+            return Some(e);
+        }
+        self.metrics.cache_misses.increment(1);
+        self.stored.as_ref()?;
+        let entry =
+            self.cache.entry(*key).or_optionally_insert_with(async { self.load(key).await.map(Arc::new) }).await?;
+        Some(entry.into_value())
+    }
+
+    /// The binding `key`, computed by `compute` unless cached or stored.
+    /// Concurrent calls for one key run `compute` once; the others wait for
+    /// it (and for its write to the store). Returns the entry and whether it
+    /// was found (in memory or in the store) rather than computed.
     pub async fn get_or_compute<F>(&self, key: Key, compute: F) -> Result<(Arc<Entry>, bool), ServiceError>
     where
         F: Future<Output = Result<Entry, ServiceError>>,
     {
+        let loaded = std::sync::atomic::AtomicBool::new(false);
         let entry = self
             .cache
             .entry(key)
             .or_try_insert_with(async {
-                let e = compute.await?;
+                if let Some(e) = self.load(&key).await {
+                    loaded.store(true, std::sync::atomic::Ordering::Relaxed);
+                    return Ok(Arc::new(e));
+                }
+                let e = Arc::new(compute.await?);
                 self.metrics.bindings_computed.increment(1);
-                Ok::<_, ServiceError>(Arc::new(e))
+                if let Some(stored) = &self.stored {
+                    stored.save(&key, e.clone()).await;
+                }
+                Ok::<_, ServiceError>(e)
             })
             .await
             .map_err(|e: Arc<ServiceError>| (*e).clone())?;
-        let fresh = entry.is_fresh();
+        let fresh = entry.is_fresh() && !loaded.load(std::sync::atomic::Ordering::Relaxed);
         if fresh {
             self.metrics.cache_misses.increment(1)
         } else {
@@ -145,8 +134,12 @@ impl BindingCache {
         Ok((value, !fresh))
     }
 
-    /// Drops binding `key`; whether it was cached.
+    /// Drops binding `key` from memory and from the store; whether it was
+    /// in memory.
     pub async fn remove(&self, key: &Key) -> bool {
+        if let Some(stored) = &self.stored {
+            stored.remove(key).await;
+        }
         self.cache.remove(key).await.is_some()
     }
 
@@ -156,16 +149,6 @@ impl BindingCache {
         self.metrics.cache_bytes.set((self.cache.weighted_size() * 1024) as f64);
         self.metrics.cache_entries.set(self.cache.entry_count() as f64);
     }
-}
-
-/// Lowercase hex of a hash.
-pub fn hex(bytes: &[u8; 32]) -> String {
-    blake3::Hash::from_bytes(*bytes).to_hex().to_string()
-}
-
-/// Parses a 64-digit hex binding id.
-pub fn parse_key(id: &str) -> Option<Key> {
-    blake3::Hash::from_hex(id).ok().map(|h| *h.as_bytes())
 }
 
 /// A blake3 hasher fed through a buffer (one `update` per 64 KiB, not per number).

@@ -24,7 +24,7 @@ use http_body_util::BodyExt;
 use tokio::sync::OwnedSemaphorePermit;
 
 use crate::binary;
-use crate::cache::{Entry, parse_key};
+use crate::entry::{Entry, parse_key};
 use crate::error::{Code, ServiceError};
 use crate::state::AppState;
 

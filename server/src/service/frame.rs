@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use curvenet_core::Adjustment;
 use curvenet_schema::wire::{AdjustmentSpec, BlendShapeMode, FrameRequest, FrameResponse};
 
-use crate::cache::Entry;
+use crate::entry::Entry;
 use crate::error::{Code, Phase, ServiceError};
 use crate::request::{MAX_COORDINATE, MAX_WEIGHT, check_points};
 

@@ -17,7 +17,9 @@
 //! frame.rs      the frame: checked against the binding, solved by core, answered
 //! state.rs      the shared state: config, cache, permits, the solve threads, jobs
 //! builder.rs    a binding request → curvenet_core::Deformer (the one way a binding is made)
-//! cache.rs      bindings by content hash (keys, entries, LRU by bytes)
+//! cache.rs      bindings by content hash (keys, LRU by bytes; memory, then the store)
+//! stored.rs     an entry as stored bytes and back, through the store (store.rs)
+//! entry.rs      a cached binding: id, deformer, description, size
 //! request.rs    a binding request checked: options, bounds, counts, predicted work
 //! config.rs     Config and its defaults, connection limits, the Baker hook
 //! error.rs, limits.rs, jobs.rs, bounded.rs, metrics.rs   leaves
@@ -36,6 +38,7 @@ mod bounded;
 mod builder;
 mod cache;
 mod config;
+mod entry;
 mod error;
 mod extract;
 mod frame;
@@ -51,6 +54,8 @@ mod request;
 mod routes;
 mod serve;
 mod state;
+pub mod store;
+pub mod stored;
 mod viewer;
 
 pub use config::{
@@ -65,6 +70,7 @@ pub use limits::{
     DEFAULT_MAX_BINDING_TIME, DEFAULT_MAX_SAMPLE_DENSITY, DEFAULT_MAX_SEGMENTS_PER_VERTEX, MIN_SEGMENT_ALLOWANCE,
     WorkLimits,
 };
+pub use metrics::Metrics;
 pub use openapi::openapi;
 pub use request::{MAX_COORDINATE, MAX_WEIGHT};
 pub use routes::app;

@@ -31,6 +31,34 @@ pub struct Metrics {
     pub frames_solved: Counter,
     pub solve_seconds: Histogram,
     pub bind_seconds: Histogram,
+    /// Binding store (`store.rs`): blobs found.
+    pub store_hits: Counter,
+    /// Binding store lookups that found no blob.
+    pub store_misses: Counter,
+    /// Blobs the caller found invalid (it increments this, then removes the blob).
+    pub store_rejected: Counter,
+    /// Binding store backend failures (I/O, S3), also those that did not fail the call.
+    pub store_errors: Counter,
+    /// Entries the store deleted to stay within its size limit.
+    pub store_evictions: Counter,
+    /// Blobs written to the store.
+    pub store_written: Counter,
+    /// Bytes of the blobs written to the store.
+    pub store_written_bytes: Counter,
+    /// Bytes of the blobs read from the store (hits).
+    pub store_read_bytes: Counter,
+    /// The store's size after the last put or usage listing.
+    pub store_bytes: Gauge,
+    /// One hit's load (read, and recency refreshed).
+    pub store_load_seconds: Histogram,
+    /// One blob's write (without the eviction sweep after it).
+    pub store_write_seconds: Histogram,
+}
+
+impl Default for Metrics {
+    fn default() -> Self {
+        Self::new()
+    }
 }
 
 impl Metrics {
@@ -102,6 +130,36 @@ impl Metrics {
                 "one frame's solve (core deform and blend shapes)",
             ),
             bind_seconds: histogram("curvenet_bind_seconds", "one binding's computation"),
+            store_hits: counter("curvenet_store_hits_total", "binding store lookups that found a blob"),
+            store_misses: counter("curvenet_store_misses_total", "binding store lookups that found no blob"),
+            store_rejected: counter(
+                "curvenet_store_rejected_total",
+                "blobs read from the binding store that failed validation (and were removed)",
+            ),
+            store_errors: counter("curvenet_store_errors_total", "binding store backend failures (file system or S3)"),
+            store_evictions: counter(
+                "curvenet_store_evictions_total",
+                "binding store entries evicted to stay within its size limit",
+            ),
+            store_written: counter("curvenet_store_written_total", "blobs written to the binding store"),
+            store_written_bytes: counter(
+                "curvenet_store_written_bytes_total",
+                "bytes of the blobs written to the binding store",
+            ),
+            store_read_bytes: counter(
+                "curvenet_store_read_bytes_total",
+                "bytes of the blobs read from the binding store",
+            ),
+            store_bytes: gauge(
+                "curvenet_store_bytes",
+                Some(Unit::Bytes),
+                "bytes in the binding store after the last write or listing",
+            ),
+            store_load_seconds: histogram(
+                "curvenet_store_load_seconds",
+                "one blob's load from the binding store (hits)",
+            ),
+            store_write_seconds: histogram("curvenet_store_write_seconds", "one blob's write to the binding store"),
             recorder,
             handle,
         }

@@ -14,8 +14,8 @@ use std::task::{Context, Poll};
 
 use axum::body::Bytes;
 
-use crate::cache::Entry;
 use crate::config::BATCH_FRAMES;
+use crate::entry::Entry;
 use crate::error::{Code, ServiceError};
 use crate::extract::Admission;
 use curvenet_schema::wire::FrameRequest;

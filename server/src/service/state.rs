@@ -12,6 +12,15 @@ use crate::error::{Code, ServiceError};
 use crate::jobs::Jobs;
 use crate::metrics::Metrics;
 
+/// Threads a solve pool of `configured` threads has (0: one per core, as
+/// rayon counts them).
+fn resolved_solve_threads(configured: usize) -> usize {
+    match configured {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        n => n,
+    }
+}
+
 /// Requests that may wait in line for a solve permit, per permit.
 pub const MAX_LINE_PER_SOLVE: usize = 4;
 
@@ -58,6 +67,34 @@ impl AppState {
     /// Builds the state. Fails when a bake root does not exist or the solve
     /// pool cannot start.
     pub fn new(config: Config, baker: Option<Baker>) -> std::io::Result<Self> {
+        Self::with_store(config, baker, Arc::new(Metrics::new()), None)
+    }
+
+    /// Builds the state over the binding store at `location` (a directory
+    /// or an `s3://` URL, at most `max_bytes`; see stored.rs): bindings
+    /// missing from memory are read from it, and bindings built here are
+    /// written to it. Fails when the store cannot be opened (named).
+    pub async fn open(
+        config: Config,
+        baker: Option<Baker>,
+        location: &str,
+        max_bytes: Option<u64>,
+    ) -> std::io::Result<Self> {
+        let metrics = Arc::new(Metrics::new());
+        let store = crate::store::BindingStore::open(location, max_bytes, metrics.clone())
+            .await
+            .map_err(|e| std::io::Error::other(format!("binding store {location}: {e}")))?;
+        let keep = resolved_solve_threads(config.solve_threads);
+        let stored = crate::stored::StoredBindings::new(Arc::new(store), metrics.clone(), keep);
+        Self::with_store(config, baker, metrics, Some(stored))
+    }
+
+    fn with_store(
+        config: Config,
+        baker: Option<Baker>,
+        metrics: Arc<Metrics>,
+        stored: Option<crate::stored::StoredBindings>,
+    ) -> std::io::Result<Self> {
         let bake_roots = config
             .bake_roots
             .iter()
@@ -66,8 +103,7 @@ impl AppState {
                     .map_err(|e| std::io::Error::new(e.kind(), format!("bake root {}: {e}", r.display())))
             })
             .collect::<std::io::Result<Vec<_>>>()?;
-        let metrics = Arc::new(Metrics::new());
-        let cache = BindingCache::new(config.cache_bytes, metrics.clone());
+        let cache = BindingCache::new(config.cache_bytes, metrics.clone(), stored);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(config.solve_threads)
             .thread_name(|i| format!("curvenet-solve-{i}"))

@@ -72,6 +72,9 @@ pub(super) struct GrowthBench {
     pub binding_met: bool,
     pub frame_target_ratio: f64,
     pub frame_met: Option<bool>,
+    /// The grown deformer written in the store's format and read back
+    /// (`bench/stored.rs`), against its full `Deformer::new` (median).
+    pub stored: super::stored::StoredBench,
     /// AMD against METIS on the grown binding's matrix (with `--orderings`).
     pub orderings: Option<super::ordering::OrderingComparison>,
 }
@@ -164,7 +167,7 @@ pub(super) fn bench_growth(
     drop(base);
     let context = format!("{} {}", file.display(), mesh.path);
     let peak_rss_reset = reset_peak_rss();
-    let (mut analysis, mut binding, mut factor) = (vec![], vec![], vec![]);
+    let (mut analysis, mut binding, mut factor, mut whole) = (vec![], vec![], vec![], vec![]);
     let (mut surface, mut cutting, mut assembly, mut other) = (vec![], vec![], vec![], vec![]);
     let mut bound = None;
     for _ in 0..repeats.max(1) {
@@ -173,6 +176,7 @@ pub(super) fn bench_growth(
         let tm = deformer.timings();
         analysis.push(tm.analysis_ms);
         let b = tm.binding;
+        whole.push(lap.wall_ms);
         let wall = lap.wall_ms - tm.analysis_ms;
         binding.push(wall);
         surface.push(b.surface_ms);
@@ -185,6 +189,11 @@ pub(super) fn bench_growth(
     let deformer = bound.expect("at least one binding");
     let (frame_times, tri9_ms, tri3_ms) = solve_frames(&deformer, &nets, frames, &context)?;
     let peak = peak_rss_bytes();
+    let stored = {
+        let pools = pose(&nets, 1, 4);
+        let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
+        super::stored::measure(&deformer, median(whole), repeats, &posed)?
+    };
     let b = deformer.binding();
     // After the peak is read: the comparison's two extra factors are not the binding's memory.
     let orderings = if orderings { Some(super::ordering::compare(b, repeats.max(1), frames.max(1))?) } else { None };
@@ -195,6 +204,7 @@ pub(super) fn bench_growth(
     Ok(GrowthBench {
         base: base_name.to_string(),
         subdivision: "1-to-4 midpoint (triangles), once",
+        stored,
         vertices: stats.mesh_vertices,
         faces: stats.mesh_faces,
         unknowns: stats.unknowns,

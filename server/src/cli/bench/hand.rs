@@ -13,6 +13,7 @@ use super::frame_parts::{CopyReference, CurvenetEval};
 use super::inputs::{MAX_ANGLE_DEG, TriSolve, build, load, pose, solve};
 use super::measure::{Series, Stopwatch, max_distance, median, ratio};
 use super::ordering;
+use super::stored;
 use super::targets::{self, Targets};
 use super::throughput::{THROUGHPUT_REPEATS, throughput};
 use crate::cli::bench_batch;
@@ -67,6 +68,8 @@ pub(super) struct MeshBench {
     pub(super) surface_ms: f64,
     pub(super) assembly_ms: f64,
     pub(super) binding_other_ms: f64,
+    /// The deformer written in the store's format and read back (`bench/stored.rs`).
+    pub(super) stored: stored::StoredBench,
     /// `deformer_ms` less `analysis_ms`.
     pub(super) binding_ms: f64,
     /// Wall time of the whole `Deformer::new`.
@@ -234,7 +237,13 @@ pub(super) fn bench_mesh(
     let tri_cpu = tri9_t.cpu().zip(tri3_t.cpu()).map(|(a, b)| a + b);
     let rest_cpu = solve_cpu.zip(tri_cpu).zip(eval_t.cpu()).map(|((s, t), e)| s - t - e);
     let targets = targets::judge(name, solve_ms, binding_ms, &batch);
+    let stored = {
+        let pools = pose(&nets, EXPORT_FRAME.0, EXPORT_FRAME.1);
+        let posed: Vec<Option<&[[f64; 3]]>> = pools.iter().map(|p| Some(p.as_slice())).collect();
+        stored::measure(&deformer, total.wall(), repeats, &posed)?
+    };
     Ok(MeshBench {
+        stored,
         mesh: name.to_string(),
         file: file.display().to_string(),
         faces: stats.mesh_faces,

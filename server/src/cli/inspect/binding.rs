@@ -32,7 +32,7 @@ pub(super) fn binding_report(stage: &Stage, m: &MeshData) -> CliResult<BindingRe
     let start = std::time::Instant::now();
     // The binding is of the projection pose: the rig and the cage under it
     // change frames, not the binding (they are reported on their own).
-    let bound = crate::cli::deformer(m, &nets, None, None);
+    let bound = crate::cli::bind::deformer(m, &nets, None, None);
     let total_ms = start.elapsed().as_secs_f64() * 1e3;
     Ok(match bound {
         Ok(d) => BindingReport {

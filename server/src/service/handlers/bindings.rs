@@ -13,7 +13,8 @@ use axum::response::{IntoResponse, Response};
 use curvenet_schema::wire::{BindingRequest, BindingResponse, ErrorBody};
 
 use crate::builder::build;
-use crate::cache::{Entry, binding_key, hex, parse_key, topology_key};
+use crate::cache::{binding_key, topology_key};
+use crate::entry::{Entry, hex, parse_key};
 use crate::error::{Code, ServiceError};
 use crate::extract::{CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
 use crate::request::{EffectiveOptions, validate};

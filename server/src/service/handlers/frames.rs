@@ -14,7 +14,7 @@ use curvenet_schema::wire::{ErrorBody, FrameBatchResponse, FrameRequest, FrameRe
 
 use crate::binary;
 use crate::binary::BinaryFrames;
-use crate::cache::Entry;
+use crate::entry::Entry;
 use crate::error::{Code, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, Form, JsonOrBinary, SizedBody, parse_json};
 use crate::pool::{HeldBody, Numbering, solve_frames};

@@ -77,7 +77,7 @@ pub use views::{
     ViewerData, ViewerExportRequest, ViewerFrame, ViewerRefusal, ViewerStageBinding, ViewerStageInfo, ViewerStages,
 };
 
-use crate::cache::{Entry, parse_key};
+use crate::entry::{Entry, parse_key};
 use crate::error::{Code, Phase, ServiceError};
 use crate::extract::{Admission, Admitted, CachedBinding, ContentType, JsonOnly, Params, SizedBody, parse_json};
 use crate::pool::{Numbering, solve_frames};

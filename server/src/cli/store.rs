@@ -1,0 +1,87 @@
+//! `bake --store`: a shot's bindings shared through a binding store (a
+//! directory or `s3://`, the service's store), so that the chunks of a shot
+//! on a farm bind each mesh once: the first to need a binding builds and
+//! writes it, the others read it (in a fraction of the build time).
+//!
+//! A bake binding is named by blake3 of everything its deformer is built
+//! from (`curvenet_core::DeformerInput::content_bytes`), not by the
+//! service's binding id: the bake builds from USD, the service from its
+//! wire request. Its blob is the service's stored envelope
+//! (`curvenet_server::stored`) without a binding description. A blob that
+//! fails any check is warned about, deleted and built again; a store that
+//! cannot be read or written is warned about and the bake binds as without
+//! one. The output does not depend on where a binding came from: a loaded
+//! deformer's frames are bit for bit the built one's.
+
+use std::sync::Arc;
+
+use curvenet_core::{Deformer, DeformerInput};
+use curvenet_server::Metrics;
+use curvenet_server::store::BindingStore;
+use curvenet_server::stored::{Meta, decode_blob, encode_blob};
+
+use super::{CliError, CliResult};
+
+/// Where a bake's deformer came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Source {
+    Built,
+    Loaded,
+}
+
+/// An open binding store and the runtime its I/O runs on.
+pub struct BakeStore {
+    runtime: tokio::runtime::Runtime,
+    store: BindingStore,
+}
+
+impl BakeStore {
+    /// Opens the store at `location` (see `serve --store`), at most `max_bytes`.
+    pub fn open(location: &str, max_bytes: Option<u64>) -> CliResult<Self> {
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .thread_name("curvenet-store")
+            .build()
+            .map_err(|e| CliError::Io { context: "starting the store's runtime".into(), source: e })?;
+        let store = runtime
+            .block_on(BindingStore::open(location, max_bytes, Arc::new(Metrics::new())))
+            .map_err(|e| CliError::Input(format!("--store {location}: {e}")))?;
+        Ok(Self { runtime, store })
+    }
+
+    /// The deformer of `input`: read from the store, else made by `build`
+    /// and written to it. `what` names the mesh in warnings.
+    pub fn deformer(
+        &self,
+        input: &DeformerInput<'_>,
+        what: &str,
+        build: impl FnOnce() -> CliResult<Deformer>,
+    ) -> CliResult<(Deformer, Source)> {
+        let mut hasher = blake3::Hasher::new();
+        hasher.update(b"curvenet bake binding v1");
+        hasher.update(&input.content_bytes());
+        let key: [u8; 32] = *hasher.finalize().as_bytes();
+        let location = self.store.location();
+        let warn = |m: String| eprintln!("curvenet: warning: {what}: binding store {location}: {m}");
+        match self.runtime.block_on(self.store.get(&key)) {
+            Ok(Some(bytes)) => match decode_blob(&bytes, &key) {
+                Ok((_, deformer)) => return Ok((deformer, Source::Loaded)),
+                Err(reason) => {
+                    warn(format!("the stored binding is refused ({reason}); binding again"));
+                    if let Err(e) = self.runtime.block_on(self.store.remove(&key)) {
+                        warn(format!("could not delete the refused binding: {e}"));
+                    }
+                }
+            },
+            Ok(None) => {}
+            Err(e) => warn(format!("cannot be read ({e}); binding without it")),
+        }
+        let deformer = build()?;
+        let bytes = encode_blob(&key, &Meta::new(None, None), &deformer);
+        if let Err(e) = self.runtime.block_on(self.store.put(&key, bytes)) {
+            warn(format!("cannot be written ({e}); the bake goes on"));
+        }
+        Ok((deformer, Source::Built))
+    }
+}

@@ -1,0 +1,260 @@
+//! The binding store (`serve --store`, `bake --store`) against a real store
+//! directory: replicas (two service states over one directory, driven
+//! through their routers) answer each other's bindings by id bit for bit;
+//! damaged store files are never used; bakes read their bindings from the
+//! store and write the same bytes; a shot's chunks bind once.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use axum::Router;
+use axum::body::{Body, Bytes};
+use axum::http::{Request, StatusCode, header};
+use common::{curvenet, repo, stderr, temp_dir};
+use curvenet_schema::usd::Stage;
+use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
+use curvenet_server::{AppState, Config, app};
+use serde_json::Value;
+use tower::ServiceExt as _;
+
+fn hand() -> &'static BindingRequest {
+    static HAND: OnceLock<BindingRequest> = OnceLock::new();
+    HAND.get_or_init(|| {
+        let stage = Stage::open(repo().join("fixtures/hand/hand_1k4.usda")).unwrap();
+        let mesh = stage.deformed_meshes().unwrap().into_iter().next().unwrap();
+        let nets: Vec<_> = mesh.curvenets.iter().map(|p| stage.curvenet(p).unwrap()).collect();
+        BindingRequest::from_stage(&mesh, &nets)
+    })
+}
+
+/// A replica: a service state over the store directory `dir`.
+async fn replica(dir: &Path) -> Router {
+    let config = Config { solve_threads: 2, ..Config::default() };
+    app(AppState::open(config, None, dir.to_str().unwrap(), None).await.unwrap())
+}
+
+async fn send(app: &Router, req: Request<Body>) -> (StatusCode, Bytes) {
+    let r = app.clone().oneshot(req).await.unwrap();
+    let status = r.status();
+    (status, axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap())
+}
+
+fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
+    Request::post(uri)
+        .header(header::CONTENT_TYPE, "application/json")
+        .body(Body::from(serde_json::to_vec(body).unwrap()))
+        .unwrap()
+}
+
+fn get(uri: &str) -> Request<Body> {
+    Request::get(uri).body(Body::empty()).unwrap()
+}
+
+async fn post_binding(app: &Router, req: &BindingRequest) -> BindingResponse {
+    let (status, body) = send(app, post_json("/v1/bindings", req)).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    serde_json::from_slice(&body).unwrap()
+}
+
+async fn metric(app: &Router, name: &str) -> f64 {
+    let (status, body) = send(app, get("/metrics")).await;
+    assert_eq!(status, StatusCode::OK);
+    let text = String::from_utf8(body.to_vec()).unwrap();
+    text.lines()
+        .find_map(|l| l.strip_prefix(name).and_then(|r| r.strip_prefix(' ')))
+        .map(|v| v.trim().parse().unwrap())
+        .unwrap_or(0.0)
+}
+
+/// A frame: the first curvenet's pool rotated by 30° about z.
+fn frame() -> FrameRequest {
+    let (s, c) = 30f64.to_radians().sin_cos();
+    let pool: Vec<[f64; 3]> =
+        hand().curvenets[0].pool.iter().map(|p| [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]]).collect();
+    let mut posed = vec![None; hand().curvenets.len()];
+    posed[0] = Some(pool);
+    FrameRequest { posed: Some(posed), ..Default::default() }
+}
+
+/// The frame's answer from `app` for binding `id` (status, raw JSON points).
+async fn frame_points(app: &Router, id: &str) -> (StatusCode, Value) {
+    let (status, body) = send(app, post_json(&format!("/v1/bindings/{id}/frames"), &frame())).await;
+    let v: Value = serde_json::from_slice(&body).unwrap_or(Value::Null);
+    (status, v)
+}
+
+fn blobs(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "cnb"))
+        .collect();
+    v.sort();
+    v
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_binding_built_by_one_replica_is_answered_by_another_by_id_bit_for_bit() {
+    let dir = temp_dir("store", "replicas");
+    let a = replica(&dir).await;
+    let b = replica(&dir).await;
+    let posted = post_binding(&a, hand()).await;
+    assert!(!posted.cached);
+    assert_eq!(blobs(&dir).len(), 1, "the post answered before its binding was written");
+    let id = posted.binding_id;
+    // B never saw the mesh: it answers the id from the store.
+    let (status, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let described: BindingResponse = serde_json::from_slice(&body).unwrap();
+    assert_eq!(described.binding_id, id);
+    assert_eq!(described.vertices, posted.vertices);
+    assert_eq!(described.stats.factor_nonzeros, posted.stats.factor_nonzeros);
+    let (sa, pa) = frame_points(&a, &id).await;
+    let (sb, pb) = frame_points(&b, &id).await;
+    assert_eq!((sa, sb), (StatusCode::OK, StatusCode::OK));
+    assert_eq!(pa["points"], pb["points"], "replica B's frame differs from A's");
+    assert_eq!(metric(&b, "curvenet_bindings_computed_total").await, 0.0);
+    assert!(metric(&b, "curvenet_store_hits_total").await >= 1.0);
+    // Posting the mesh to B now finds it cached (loaded), not computed.
+    assert!(post_binding(&b, hand()).await.cached);
+    assert_eq!(metric(&b, "curvenet_bindings_computed_total").await, 0.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn damaged_store_files_are_never_used_and_are_rebuilt() {
+    let dir = temp_dir("store", "damaged");
+    let a = replica(&dir).await;
+    let id = post_binding(&a, hand()).await.binding_id;
+    let (_, want) = frame_points(&a, &id).await;
+    let path = blobs(&dir).pop().unwrap();
+    let good = std::fs::read(&path).unwrap();
+    let n = good.len();
+    // Damage: bytes flipped in the envelope's header, its meta, the
+    // deformer's header and deep in its payload; truncations; nothing; a
+    // blob stored under another key's name.
+    let mut damaged: Vec<(String, Vec<u8>)> = Vec::new();
+    for at in [0, 9, 20, 60, 70, 100, 130, n / 3, n / 2, n - 1] {
+        let mut b = good.clone();
+        b[at] ^= 0x40;
+        damaged.push((format!("byte {at} flipped"), b));
+    }
+    for len in [0, 7, 63, 100, n / 2, n - 1] {
+        damaged.push((format!("truncated to {len}"), good[..len].to_vec()));
+    }
+    let mut longer = good.clone();
+    longer.extend_from_slice(b"junk");
+    damaged.push(("junk appended".into(), longer));
+    for (what, bytes) in damaged {
+        std::fs::write(&path, &bytes).unwrap();
+        // A fresh replica: nothing in memory.
+        let c = replica(&dir).await;
+        let (status, _) = send(&c, get(&format!("/v1/bindings/{id}"))).await;
+        assert_eq!(status, StatusCode::NOT_FOUND, "{what}: a damaged binding was used");
+        let (status, _) = frame_points(&c, &id).await;
+        assert_eq!(status, StatusCode::NOT_FOUND, "{what}: a frame was answered from a damaged binding");
+        assert!(metric(&c, "curvenet_store_rejected_total").await >= 1.0, "{what}: not counted");
+        // The post carries the mesh: built again, written again, correct.
+        let posted = post_binding(&c, hand()).await;
+        assert!(!posted.cached, "{what}");
+        let (status, got) = frame_points(&c, &id).await;
+        assert_eq!(status, StatusCode::OK, "{what}");
+        assert_eq!(got["points"], want["points"], "{what}: the rebuilt binding's frame differs");
+        // Written again whole: a fresh replica answers the id from it.
+        let d = replica(&dir).await;
+        let (status, _) = send(&d, get(&format!("/v1/bindings/{id}"))).await;
+        assert_eq!(status, StatusCode::OK, "{what}: the rebuilt binding was not written again");
+    }
+    // A good blob under another id's name is refused too (wrong key).
+    let other = format!("{}{}", &id[..63], if id.ends_with('0') { '1' } else { '0' });
+    std::fs::copy(&path, dir.join(format!("{other}.cnb"))).unwrap();
+    let c = replica(&dir).await;
+    let (status, _) = send(&c, get(&format!("/v1/bindings/{other}"))).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "a blob renamed to another key was used");
+    assert!(metric(&c, "curvenet_store_rejected_total").await >= 1.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn bake(shot: &str, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec!["bake", shot, "--out", out.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let run = curvenet(&args);
+    assert!(run.status.success(), "bake {shot} {extra:?}: {}", stderr(&run));
+    run
+}
+
+#[test]
+fn every_shot_bakes_the_same_bytes_built_and_loaded_from_the_store() {
+    // The skinned, rigged (spline skinning), caged, cage-only, adjusted and
+    // plain shots: each layer of the rig goes through the stored format.
+    let dir = temp_dir("store", "shots");
+    for shot in ["hand_wave", "hand_skinned", "hand_rigged", "hand_caged", "hand_cage_only", "hand_adjusted"] {
+        let input = format!("fixtures/shots/{shot}/shot.usda");
+        let plain = dir.join(format!("{shot}.plain.usda"));
+        let built = dir.join(format!("{shot}.built.usda"));
+        let loaded = dir.join(format!("{shot}.loaded.usda"));
+        // A store per shot: some shots share their mesh and curvenets (one binding).
+        let store = dir.join(format!("{shot}.store"));
+        bake(&input, &plain, &["--frames", "1-4"]);
+        let first = bake(&input, &built, &["--frames", "1-4", "--store", store.to_str().unwrap()]);
+        assert!(stderr(&first).contains("(built, written to the store)"), "{shot}: {}", stderr(&first));
+        let second = bake(&input, &loaded, &["--frames", "1-4", "--store", store.to_str().unwrap()]);
+        assert!(stderr(&second).contains("loaded from the store"), "{shot}: {}", stderr(&second));
+        let p = std::fs::read(&plain).unwrap();
+        assert!(p == std::fs::read(&built).unwrap(), "{shot}: the bake that wrote the store differs");
+        assert!(p == std::fs::read(&loaded).unwrap(), "{shot}: the bake from the store differs");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `bind N ms` from a bake's summary line.
+fn bind_ms(run: &std::process::Output) -> f64 {
+    let err = stderr(run);
+    let at = err.find(": bind ").unwrap_or_else(|| panic!("no bind time in: {err}"));
+    err[at + 7..].split_whitespace().next().unwrap().parse().unwrap()
+}
+
+#[test]
+fn a_four_chunk_bake_binds_once_and_stitches_to_the_whole_bake() {
+    let dir = temp_dir("store", "chunks");
+    let store = dir.join("store");
+    let s = store.to_str().unwrap();
+    let shot = "fixtures/shots/hand_wave/shot.usda";
+    let whole = dir.join("whole.usda");
+    bake(shot, &whole, &[]);
+    // As the farm template runs them: the first chunk binds (the template's
+    // bind step does the same with --frames of one frame), then the other
+    // three run at once and load.
+    let chunks = ["1-6", "7-12", "13-18", "19-24"];
+    let paths: Vec<PathBuf> = chunks.iter().map(|c| dir.join(format!("chunk.{c}.usda"))).collect();
+    let first = bake(shot, &paths[0], &["--frames", chunks[0], "--store", s]);
+    assert!(stderr(&first).contains("(built, written to the store)"), "{}", stderr(&first));
+    let rest: Vec<std::process::Output> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (1..4)
+            .map(|k| {
+                let (p, c) = (&paths[k], chunks[k]);
+                scope.spawn(move || bake(shot, p, &["--frames", c, "--store", s]))
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    eprintln!("chunk 1 bound in {:.0} ms (built)", bind_ms(&first));
+    for (k, run) in rest.iter().enumerate() {
+        assert!(stderr(run).contains("(loaded from the store)"), "chunk {}: {}", k + 2, stderr(run));
+        eprintln!("chunk {} bound in {:.0} ms (loaded)", k + 2, bind_ms(run));
+    }
+    assert_eq!(blobs(&store).len(), 1, "one binding for the shot's one mesh");
+    let stitched = dir.join("stitched.usda");
+    let mut args = vec!["stitch"];
+    args.extend(paths.iter().map(|p| p.to_str().unwrap()));
+    args.extend(["--out", stitched.to_str().unwrap()]);
+    let run = curvenet(&args);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        std::fs::read(&whole).unwrap() == std::fs::read(&stitched).unwrap(),
+        "stitched chunks differ from the whole"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
