@@ -237,6 +237,22 @@ def test_the_dtd_check_catches_what_cuebot_would_refuse(tmp_path, monkeypatch):
         _check_against_dtd(spec)
 
 
+def _dispatch(layer):
+    """Cuebot: the layer's frames in chunks, tokens replaced; RQD: the command
+    through a shell. Returns each task's stderr."""
+    a, _, b = layer.findtext("range").partition("-")
+    frames = list(range(int(a), int(b or a) + 1))
+    size = int(layer.findtext("chunk"))
+    errs = []
+    for k in range(0, len(frames), size):
+        part = frames[k:k + size]
+        cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])).replace("#FRAME_END#", str(part[-1]))
+        run = subprocess.run(["/bin/sh", "-c", cmd], capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, f"{layer.get('name')} frames {part[0]}-{part[-1]}: {run.stderr}"
+        errs.append(run.stderr)
+    return errs
+
+
 def test_opencue_job_runs_as_cuebot_dispatches_it_into_the_whole_range_bake(curvenet, tmp_path, monkeypatch):
     first, last, chunk = 1, 24, 10
     # submit.py's command line, as a TD runs it (it also makes the chunk directory).
@@ -252,20 +268,9 @@ def test_opencue_job_runs_as_cuebot_dispatches_it_into_the_whole_range_bake(curv
     spec = ET.fromstring(buf.getvalue())
     layers = {layer.get("name"): layer for layer in spec.find("job/layers")}
 
-    def dispatch(layer):
-        """Cuebot: the layer's frames in chunks, tokens replaced; RQD: the command through a shell."""
-        a, _, b = layer.findtext("range").partition("-")
-        frames = list(range(int(a), int(b or a) + 1))
-        size = int(layer.findtext("chunk"))
-        for k in range(0, len(frames), size):
-            part = frames[k:k + size]
-            cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])).replace("#FRAME_END#", str(part[-1]))
-            run = subprocess.run(["/bin/sh", "-c", cmd], capture_output=True, text=True, timeout=300)
-            assert run.returncode == 0, f"{layer.get('name')} frames {part[0]}-{part[-1]}: {run.stderr}"
-
-    dispatch(layers["bake"])
+    _dispatch(layers["bake"])
     assert sorted(p.name for p in output.with_name("hand_wave.usdc.chunks").iterdir()) == ["1-10.usdc", "11-20.usdc", "21-24.usdc"]
-    dispatch(layers["stitch"])
+    _dispatch(layers["stitch"])
     assert output.read_bytes() == _whole_bake(curvenet, tmp_path / "whole.usdc", f"{first}-{last}")
 
 
@@ -286,22 +291,11 @@ def test_opencue_job_with_a_store_binds_in_its_own_layer_and_bakes_the_whole_ran
     pairs = [(d.findtext("deplayer"), d.findtext("onlayer")) for d in spec.find("depends").findall("depend")]
     assert sorted(pairs) == [("bake", "bind"), ("stitch", "bake")]
     assert shlex.split(layers["bake"].findtext("cmd"))[-2:] == ["--store", str(store)]
-    logs = []
-    for name in ("bind", "bake", "stitch"):
-        layer = layers[name]
-        a, _, b = layer.findtext("range").partition("-")
-        frames = list(range(int(a), int(b or a) + 1))
-        size = int(layer.findtext("chunk"))
-        for k in range(0, len(frames), size):
-            part = frames[k:k + size]
-            cmd = layer.findtext("cmd").replace("#FRAME_START#", str(part[0])).replace("#FRAME_END#", str(part[-1]))
-            run = subprocess.run(["/bin/sh", "-c", cmd], capture_output=True, text=True, timeout=300)
-            assert run.returncode == 0, f"{name} frames {part[0]}-{part[-1]}: {run.stderr}"
-            logs.append((name, run.stderr))
+    logs = {name: _dispatch(layers[name]) for name in ("bind", "bake", "stitch")}
     assert output.read_bytes() == _whole_bake(curvenet, tmp_path / "whole.usdc", "1-24")
     assert [p.suffix for p in store.iterdir() if not p.name.startswith(".")] == [".cnb"]
     assert not (output.with_name("hand_wave.usdc.chunks") / ".bind.usdc").exists()
-    bakes = [err for name, err in logs if name == "bake"]
+    bakes = logs["bake"]
     assert len(bakes) == 3 and all("(loaded from the store)" in err for err in bakes), bakes
 
 
