@@ -109,6 +109,14 @@ impl DeformerInput<'_> {
     /// deformers. Hashed, it names a stored binding (`curvenet bake
     /// --store`). The cancellation flag is not part of it.
     pub fn content_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.write_content(|b| out.extend_from_slice(b));
+        out
+    }
+
+    /// [`Self::content_bytes`] handed to `sink` in pieces of at most 64 KiB,
+    /// in order: how to hash the content without holding it all.
+    pub fn write_content(&self, sink: impl FnMut(&[u8])) {
         /// A curvenet's splines, pool and density; a cage's points and triangles.
         type Net<'a> = (&'a [[u32; 4]], &'a [[f64; 3]], f64);
         type Cage<'a> = (&'a [[f64; 3]], &'a [[u32; 3]]);
@@ -144,7 +152,41 @@ impl DeformerInput<'_> {
             strict: bind.strict,
             max_segments_per_spline: self.options.max_segments_per_spline,
         };
-        postcard::to_allocvec(&content).expect("postcard serialises slices and numbers into a Vec")
+        postcard::to_extend(&content, Chunks::new(sink))
+            .expect("postcard serialises slices and numbers into any Extend")
+            .flush();
+    }
+}
+
+/// An `Extend<u8>` that hands its bytes on in chunks (postcard pushes them
+/// one at a time).
+struct Chunks<F: FnMut(&[u8])> {
+    buf: Vec<u8>,
+    sink: F,
+}
+
+impl<F: FnMut(&[u8])> Chunks<F> {
+    const CAPACITY: usize = 1 << 16;
+
+    fn new(sink: F) -> Self {
+        Self { buf: Vec::with_capacity(Self::CAPACITY), sink }
+    }
+
+    fn flush(mut self) {
+        (self.sink)(&self.buf);
+        self.buf.clear();
+    }
+}
+
+impl<F: FnMut(&[u8])> Extend<u8> for Chunks<F> {
+    fn extend<I: IntoIterator<Item = u8>>(&mut self, bytes: I) {
+        for b in bytes {
+            if self.buf.len() == Self::CAPACITY {
+                (self.sink)(&self.buf);
+                self.buf.clear();
+            }
+            self.buf.push(b);
+        }
     }
 }
 
@@ -424,6 +466,14 @@ impl Deformer {
     /// [`Self::from_bytes`] reads it back into a deformer whose frames are
     /// bit for bit this one's.
     pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.stored_bytes_hint());
+        self.append_bytes(&mut out);
+        out
+    }
+
+    /// [`Self::to_bytes`] appended to `out`: how an envelope (the
+    /// service's stored entry) holds the deformer without a second copy.
+    pub fn append_bytes(&self, out: &mut Vec<u8>) {
         let stored = StoredRef {
             binding: &self.binding,
             shapes: &self.shapes,
@@ -432,8 +482,12 @@ impl Deformer {
             rig: &self.rig,
             cage: &self.cage,
         };
-        let hint = self.binding.heap_bytes() + self.projection_points.len() * 24;
-        crate::persist::encode(&stored, crate::persist::KIND_DEFORMER, hint)
+        crate::persist::encode_into(&stored, crate::persist::KIND_DEFORMER, out)
+    }
+
+    /// About how many bytes [`Self::to_bytes`] writes (a capacity to reserve).
+    pub fn stored_bytes_hint(&self) -> usize {
+        crate::persist::HEADER_BYTES + self.binding.heap_bytes() + self.projection_points.len() * 24
     }
 
     /// A deformer read back from [`Self::to_bytes`]'s bytes. Refuses, with

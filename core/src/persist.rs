@@ -78,19 +78,27 @@ pub enum FormatError {
 /// `value` as a stored blob of `kind`: the header, then its payload.
 pub fn encode<T: Serialize>(value: &T, kind: u32, size_hint: usize) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER_BYTES + size_hint);
-    out.resize(HEADER_BYTES, 0);
+    encode_into(value, kind, &mut out);
+    out
+}
+
+/// [`encode`], appended to `out` (so that an envelope around the blob is
+/// written in place, not copied): reserve room first to avoid regrowth.
+pub fn encode_into<T: Serialize>(value: &T, kind: u32, out: &mut Vec<u8>) {
+    let start = out.len();
+    out.resize(start + HEADER_BYTES, 0);
     // Serialising into a Vec cannot fail for these types (no maps with
     // non-string keys, no unsized sequences): postcard's only errors are
     // about writers that run out of room and unsupported serde features.
-    let mut out = postcard::to_extend(value, out).expect("postcard serialises every stored type into a Vec");
-    let payload_len = (out.len() - HEADER_BYTES) as u64;
-    let crc = crc32fast::hash(&out[HEADER_BYTES..]);
-    out[0..8].copy_from_slice(&MAGIC);
-    out[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out[12..16].copy_from_slice(&kind.to_le_bytes());
-    out[16..24].copy_from_slice(&payload_len.to_le_bytes());
-    out[24..28].copy_from_slice(&crc.to_le_bytes());
-    out
+    *out = postcard::to_extend(value, std::mem::take(out)).expect("postcard serialises every stored type into a Vec");
+    let blob = &mut out[start..];
+    let payload_len = (blob.len() - HEADER_BYTES) as u64;
+    let crc = crc32fast::hash(&blob[HEADER_BYTES..]);
+    blob[0..8].copy_from_slice(&MAGIC);
+    blob[8..12].copy_from_slice(&FORMAT_VERSION.to_le_bytes());
+    blob[12..16].copy_from_slice(&kind.to_le_bytes());
+    blob[16..24].copy_from_slice(&payload_len.to_le_bytes());
+    blob[24..28].copy_from_slice(&crc.to_le_bytes());
 }
 
 /// The value of `kind` stored in `bytes` (as [`encode`] wrote it), after

@@ -252,3 +252,39 @@ fn a_rigged_frame_is_skinning_then_spline_skinning_then_the_solve() {
     };
     assert!(matches!(Deformer::new(&bad), Err(Error::CountMismatch { expected, got: 10, .. }) if expected == n));
 }
+
+/// The content that names a stored bake binding: streamed in bounded
+/// pieces that make up exactly the whole, and changed by any input bit.
+#[test]
+fn the_content_streams_in_bounded_pieces_and_follows_every_input() {
+    let (mesh, pts, net) = hand_with_grid();
+    let counts: Vec<u32> = mesh.face_vertex_counts().collect();
+    let nets = [CurvenetInput { splines: &net.splines, pool: &net.points, sample_density: 5.0 }];
+    // The whole content, and the pieces `write_content` hands on.
+    let content = |pts: &[[f64; 3]], shapes: Vec<BlendShape>| {
+        let input = DeformerInput {
+            mesh: MeshInput {
+                face_vertex_counts: &counts,
+                face_vertex_indices: mesh.face_vertex_indices(),
+                projection_points: pts,
+            },
+            curvenets: &nets,
+            blend_shapes: shapes,
+            skinning: None,
+            cage: None,
+            options: DeformerOptions::default(),
+        };
+        let mut pieces: Vec<Vec<u8>> = Vec::new();
+        input.write_content(|p| pieces.push(p.to_vec()));
+        (input.content_bytes(), pieces)
+    };
+    let (whole, pieces) = content(&pts, shapes(pts.len()));
+    assert!(pieces.len() > 1, "{} bytes in one piece", whole.len());
+    assert!(pieces.iter().all(|p| p.len() <= 1 << 16));
+    assert_eq!(pieces.concat(), whole);
+    // One point's last bit, or no blend shapes: other content.
+    let mut moved = pts.clone();
+    moved[pts.len() / 2][1] = f64::from_bits(moved[pts.len() / 2][1].to_bits() ^ 1);
+    assert_ne!(content(&moved, shapes(pts.len())).0, whole);
+    assert_ne!(content(&pts, Vec::new()).0, whole);
+}

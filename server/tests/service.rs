@@ -6,13 +6,15 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::body::{Body, Bytes};
-use axum::http::{HeaderMap, Request, StatusCode, header};
+use axum::http::{Request, StatusCode, header};
 use curvenet_core::{CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
 use curvenet_server::{AppState, BakeJob, Baker, Code, Config, app};
 use serde_json::{Value, json};
-use tower::ServiceExt as _;
+
+mod common;
+use common::router::{get, metric, post_binding, post_json, send};
 
 fn fixtures() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures")
@@ -87,49 +89,14 @@ fn test_config() -> Config {
     Config { solve_threads: 2, ..Config::default() }
 }
 
-async fn send(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes) {
-    let r = app.clone().oneshot(req).await.unwrap();
-    let status = r.status();
-    let headers = r.headers().clone();
-    let body = axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap();
-    (status, headers, body)
-}
-
-fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri)
-        .header(header::CONTENT_TYPE, "application/json")
-        .body(Body::from(serde_json::to_vec(body).unwrap()))
-        .unwrap()
-}
-
 fn post_binary(uri: &str, body: Vec<u8>) -> Request<Body> {
     Request::post(uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(body)).unwrap()
-}
-
-fn get(uri: &str) -> Request<Body> {
-    Request::get(uri).body(Body::empty()).unwrap()
-}
-
-async fn post_binding(app: &Router, req: &BindingRequest) -> BindingResponse {
-    let (status, _, body) = send(app, post_json("/v1/bindings", req)).await;
-    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    serde_json::from_slice(&body).unwrap()
 }
 
 fn error_code(body: &[u8]) -> String {
     let v: Value =
         serde_json::from_slice(body).unwrap_or_else(|_| panic!("not JSON: {}", String::from_utf8_lossy(body)));
     v["code"].as_str().unwrap().to_string()
-}
-
-async fn metric(app: &Router, name: &str) -> f64 {
-    let (status, _, body) = send(app, get("/metrics")).await;
-    assert_eq!(status, StatusCode::OK);
-    let text = String::from_utf8(body.to_vec()).unwrap();
-    text.lines()
-        .find_map(|l| l.strip_prefix(name).and_then(|r| r.strip_prefix(' ')))
-        .map(|v| v.trim().parse().unwrap())
-        .unwrap_or_else(|| panic!("{name} not in /metrics:\n{text}"))
 }
 
 fn json_points(v: &Value) -> Vec<[f64; 3]> {

@@ -7,7 +7,7 @@
 use std::sync::OnceLock;
 
 use axum::Router;
-use axum::body::{Body, Bytes};
+use axum::body::Body;
 use axum::http::{Request, StatusCode, header};
 use curvenet_core::knot_tangents;
 use curvenet_core::{Adjustment, CurvenetInput, Deformer, DeformerInput, DeformerOptions, Frame, Rotate};
@@ -15,7 +15,9 @@ use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameResponse};
 use curvenet_server::{AppState, Config, app};
 use serde_json::{Value, json};
-use tower::ServiceExt as _;
+
+mod common;
+use common::router::{post_json, send};
 
 fn hand() -> &'static BindingRequest {
     static HAND: OnceLock<BindingRequest> = OnceLock::new();
@@ -51,21 +53,8 @@ fn state() -> AppState {
     AppState::new(Config { solve_threads: 2, ..Config::default() }, None).unwrap()
 }
 
-async fn send(app: &Router, req: Request<Body>) -> (StatusCode, Bytes) {
-    let r = app.clone().oneshot(req).await.unwrap();
-    let status = r.status();
-    (status, axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap())
-}
-
-fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri)
-        .header(header::CONTENT_TYPE, "application/json")
-        .body(Body::from(serde_json::to_vec(body).unwrap()))
-        .unwrap()
-}
-
 async fn bind(app: &Router) -> String {
-    let (status, body) = send(app, post_json("/v1/bindings", hand())).await;
+    let (status, _, body) = send(app, post_json("/v1/bindings", hand())).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     serde_json::from_slice::<BindingResponse>(&body).unwrap().binding_id
 }
@@ -143,7 +132,7 @@ async fn post_binary(
     }
     let req =
         Request::post(uri).header(header::CONTENT_TYPE, "application/octet-stream").body(Body::from(bin)).unwrap();
-    let (status, body) = send(app, req).await;
+    let (status, _, body) = send(app, req).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let hl = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
     let rh: Value = serde_json::from_slice(&body[4..4 + hl]).unwrap();
@@ -199,7 +188,7 @@ async fn adjusted_frames_match_core_in_json_binary_and_batch() {
     assert!(moved > 1e-4, "the adjustments move the surface ({moved})");
 
     // JSON.
-    let (status, body) =
+    let (status, _, body) =
         send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire, "orientations": true}))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let r: FrameResponse = serde_json::from_slice(&body).unwrap();
@@ -208,7 +197,7 @@ async fn adjusted_frames_match_core_in_json_binary_and_batch() {
 
     // Without `orientations`, none are answered; zero adjustments change nothing.
     let identity: Vec<Value> = knots().iter().map(|k| json!({"curvenet": 0, "knot": k})).collect();
-    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": identity}))).await;
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": identity}))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let r: FrameResponse = serde_json::from_slice(&body).unwrap();
     assert!(r.knot_orientations.is_none());
@@ -228,7 +217,7 @@ async fn adjusted_frames_match_core_in_json_binary_and_batch() {
         {"posed": [posed]},
         {"posed": [posed], "adjustments": wire, "orientations": true},
     ]});
-    let (status, body) = send(&app, post_json(&format!("{uri}:batch"), &batch)).await;
+    let (status, _, body) = send(&app, post_json(&format!("{uri}:batch"), &batch)).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let frames: Vec<FrameResponse> =
         serde_json::from_value(serde_json::from_slice::<Value>(&body).unwrap()["frames"].clone()).unwrap();
@@ -246,7 +235,7 @@ async fn unposed_frames_answer_orientations_of_the_tracked_pool() {
     let app = app(state());
     let id = bind(&app).await;
     let (wire, core) = adjustments();
-    let (status, body) = send(
+    let (status, _, body) = send(
         &app,
         post_json(&format!("/v1/bindings/{id}/frames"), &json!({"adjustments": wire, "orientations": true})),
     )
@@ -285,7 +274,7 @@ async fn bad_knots_are_422_naming_them() {
     // Not an endpoint: adjustment 1 names its knot.
     let frame = json!({"adjustments": [{"curvenet": 0, "knot": good, "translate": [0.0, 0.0, 0.001]},
                                        {"curvenet": 0, "knot": tangent}]});
-    let (status, body) = send(&app, post_json(&uri, &frame)).await;
+    let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
     let v = details(&body);
     assert_eq!(v["code"], "invalid_parameter");
@@ -302,7 +291,7 @@ async fn bad_knots_are_422_naming_them() {
     ] {
         let frame = json!({"adjustments": [{"curvenet": 0, "knot": good},
                                            {"curvenet": 0, "knot": knots()[1], field: value}]});
-        let (status, body) = send(&app, post_json(&uri, &frame)).await;
+        let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
         assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{field}: {}", String::from_utf8_lossy(&body));
         let v = details(&body);
         assert_eq!(v["code"], "invalid_parameter", "{field}: {v}");
@@ -314,7 +303,7 @@ async fn bad_knots_are_422_naming_them() {
 
     // Out of range.
     let frame = json!({"adjustments": [{"curvenet": 0, "knot": pool + 7}]});
-    let (status, body) = send(&app, post_json(&uri, &frame)).await;
+    let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
     let v = details(&body);
     assert_eq!(v["code"], "index_out_of_range");
@@ -326,7 +315,7 @@ async fn bad_knots_are_422_naming_them() {
 
     // A curvenet the binding does not have.
     let frame = json!({"adjustments": [{"curvenet": 3, "knot": good}]});
-    let (status, body) = send(&app, post_json(&uri, &frame)).await;
+    let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
     let v = details(&body);
     assert_eq!(v["code"], "index_out_of_range");
@@ -335,7 +324,7 @@ async fn bad_knots_are_422_naming_them() {
     // Wrong number of tangent translates.
     let nine = vec![[0.0f64; 3]; 9];
     let frame = json!({"adjustments": [{"curvenet": 0, "knot": good, "tangent_translates": nine}]});
-    let (status, body) = send(&app, post_json(&uri, &frame)).await;
+    let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
     let v = details(&body);
     assert_eq!(v["code"], "count_mismatch");
@@ -343,7 +332,7 @@ async fn bad_knots_are_422_naming_them() {
 
     // In a batch: the frame too.
     let batch = json!({"frames": [{}, {"adjustments": [{"curvenet": 0, "knot": tangent}]}]});
-    let (status, body) = send(&app, post_json(&format!("{uri}:batch"), &batch)).await;
+    let (status, _, body) = send(&app, post_json(&format!("{uri}:batch"), &batch)).await;
     assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{}", String::from_utf8_lossy(&body));
     let v = details(&body);
     assert_eq!(v["details"]["frame"], 1);
@@ -351,7 +340,7 @@ async fn bad_knots_are_422_naming_them() {
 
     // Unknown fields are refused, not ignored.
     let frame = json!({"adjustments": [{"curvenet": 0, "knot": good, "rotation": [0.0, 0.0, 1.0]}]});
-    let (status, body) = send(&app, post_json(&uri, &frame)).await;
+    let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
     assert_eq!(status, StatusCode::BAD_REQUEST, "{}", String::from_utf8_lossy(&body));
 }
 
@@ -363,10 +352,10 @@ async fn the_viewer_frame_draws_the_adjusted_curvenet() {
     let (wire, core) = adjustments();
     let uri = format!("/v1/bindings/{id}/viewer-frame");
     let view = |body: &[u8]| -> Value { serde_json::from_slice(body).unwrap() };
-    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let adjusted = view(&body);
-    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed]}))).await;
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"posed": [posed]}))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let plain = view(&body);
 
@@ -398,7 +387,7 @@ async fn orient_rotates_by_a_quaternion_and_not_beside_rotate() {
     assert!(max_diff(&want, &solve_reference(&posed, &[])) > 1e-5, "the quaternion moves the surface");
 
     let wire = json!([{"curvenet": 0, "knot": knot, "orient": q}]);
-    let (status, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
+    let (status, _, body) = send(&app, post_json(&uri, &json!({"posed": [posed], "adjustments": wire}))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let r: FrameResponse = serde_json::from_slice(&body).unwrap();
     assert_eq!(r.points, want, "JSON: bit for bit after f32");
@@ -412,7 +401,7 @@ async fn orient_rotates_by_a_quaternion_and_not_beside_rotate() {
         (json!({"curvenet": 0, "knot": knot, "orient": [1.0, 0.0, 2e15, 0.0]}), "beyond"),
     ] {
         let frame = json!({"adjustments": [{"curvenet": 0, "knot": knots()[0]}, adjustment]});
-        let (status, body) = send(&app, post_json(&uri, &frame)).await;
+        let (status, _, body) = send(&app, post_json(&uri, &frame)).await;
         assert_eq!(status, StatusCode::UNPROCESSABLE_ENTITY, "{what}: {}", String::from_utf8_lossy(&body));
         let v: Value = serde_json::from_slice(&body).unwrap();
         assert_eq!(v["code"], "invalid_parameter", "{what}: {v}");

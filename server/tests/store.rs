@@ -10,14 +10,14 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use axum::Router;
-use axum::body::{Body, Bytes};
-use axum::http::{Request, StatusCode, header};
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use common::router::{get, metric_opt, post_binding, post_json, send};
 use common::{curvenet, repo, stderr, temp_dir};
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, BindingResponse, FrameRequest};
 use curvenet_server::{AppState, Config, app};
 use serde_json::Value;
-use tower::ServiceExt as _;
 
 fn hand() -> &'static BindingRequest {
     static HAND: OnceLock<BindingRequest> = OnceLock::new();
@@ -35,39 +35,6 @@ async fn replica(dir: &Path) -> Router {
     app(AppState::open(config, None, dir.to_str().unwrap(), None).await.unwrap())
 }
 
-async fn send(app: &Router, req: Request<Body>) -> (StatusCode, Bytes) {
-    let r = app.clone().oneshot(req).await.unwrap();
-    let status = r.status();
-    (status, axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap())
-}
-
-fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri)
-        .header(header::CONTENT_TYPE, "application/json")
-        .body(Body::from(serde_json::to_vec(body).unwrap()))
-        .unwrap()
-}
-
-fn get(uri: &str) -> Request<Body> {
-    Request::get(uri).body(Body::empty()).unwrap()
-}
-
-async fn post_binding(app: &Router, req: &BindingRequest) -> BindingResponse {
-    let (status, body) = send(app, post_json("/v1/bindings", req)).await;
-    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    serde_json::from_slice(&body).unwrap()
-}
-
-async fn metric(app: &Router, name: &str) -> f64 {
-    let (status, body) = send(app, get("/metrics")).await;
-    assert_eq!(status, StatusCode::OK);
-    let text = String::from_utf8(body.to_vec()).unwrap();
-    text.lines()
-        .find_map(|l| l.strip_prefix(name).and_then(|r| r.strip_prefix(' ')))
-        .map(|v| v.trim().parse().unwrap())
-        .unwrap_or(0.0)
-}
-
 /// A frame: the first curvenet's pool rotated by 30° about z.
 fn frame() -> FrameRequest {
     let (s, c) = 30f64.to_radians().sin_cos();
@@ -80,7 +47,7 @@ fn frame() -> FrameRequest {
 
 /// The frame's answer from `app` for binding `id` (status, raw JSON points).
 async fn frame_points(app: &Router, id: &str) -> (StatusCode, Value) {
-    let (status, body) = send(app, post_json(&format!("/v1/bindings/{id}/frames"), &frame())).await;
+    let (status, _, body) = send(app, post_json(&format!("/v1/bindings/{id}/frames"), &frame())).await;
     let v: Value = serde_json::from_slice(&body).unwrap_or(Value::Null);
     (status, v)
 }
@@ -105,7 +72,7 @@ async fn a_binding_built_by_one_replica_is_answered_by_another_by_id_bit_for_bit
     assert_eq!(blobs(&dir).len(), 1, "the post answered before its binding was written");
     let id = posted.binding_id;
     // B never saw the mesh: it answers the id from the store.
-    let (status, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    let (status, _, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     let described: BindingResponse = serde_json::from_slice(&body).unwrap();
     assert_eq!(described.binding_id, id);
@@ -115,11 +82,11 @@ async fn a_binding_built_by_one_replica_is_answered_by_another_by_id_bit_for_bit
     let (sb, pb) = frame_points(&b, &id).await;
     assert_eq!((sa, sb), (StatusCode::OK, StatusCode::OK));
     assert_eq!(pa["points"], pb["points"], "replica B's frame differs from A's");
-    assert_eq!(metric(&b, "curvenet_bindings_computed_total").await, 0.0);
-    assert!(metric(&b, "curvenet_store_hits_total").await >= 1.0);
+    assert_eq!(metric_opt(&b, "curvenet_bindings_computed_total").await.unwrap_or(0.0), 0.0);
+    assert!(metric_opt(&b, "curvenet_store_hits_total").await.unwrap_or(0.0) >= 1.0);
     // Posting the mesh to B now finds it cached (loaded), not computed.
     assert!(post_binding(&b, hand()).await.cached);
-    assert_eq!(metric(&b, "curvenet_bindings_computed_total").await, 0.0);
+    assert_eq!(metric_opt(&b, "curvenet_bindings_computed_total").await.unwrap_or(0.0), 0.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -151,11 +118,11 @@ async fn damaged_store_files_are_never_used_and_are_rebuilt() {
         std::fs::write(&path, &bytes).unwrap();
         // A fresh replica: nothing in memory.
         let c = replica(&dir).await;
-        let (status, _) = send(&c, get(&format!("/v1/bindings/{id}"))).await;
+        let (status, _, _) = send(&c, get(&format!("/v1/bindings/{id}"))).await;
         assert_eq!(status, StatusCode::NOT_FOUND, "{what}: a damaged binding was used");
         let (status, _) = frame_points(&c, &id).await;
         assert_eq!(status, StatusCode::NOT_FOUND, "{what}: a frame was answered from a damaged binding");
-        assert!(metric(&c, "curvenet_store_rejected_total").await >= 1.0, "{what}: not counted");
+        assert!(metric_opt(&c, "curvenet_store_rejected_total").await.unwrap_or(0.0) >= 1.0, "{what}: not counted");
         // The post carries the mesh: built again, written again, correct.
         let posted = post_binding(&c, hand()).await;
         assert!(!posted.cached, "{what}");
@@ -164,16 +131,16 @@ async fn damaged_store_files_are_never_used_and_are_rebuilt() {
         assert_eq!(got["points"], want["points"], "{what}: the rebuilt binding's frame differs");
         // Written again whole: a fresh replica answers the id from it.
         let d = replica(&dir).await;
-        let (status, _) = send(&d, get(&format!("/v1/bindings/{id}"))).await;
+        let (status, _, _) = send(&d, get(&format!("/v1/bindings/{id}"))).await;
         assert_eq!(status, StatusCode::OK, "{what}: the rebuilt binding was not written again");
     }
     // A good blob under another id's name is refused too (wrong key).
     let other = format!("{}{}", &id[..63], if id.ends_with('0') { '1' } else { '0' });
     std::fs::copy(&path, dir.join(format!("{other}.cnb"))).unwrap();
     let c = replica(&dir).await;
-    let (status, _) = send(&c, get(&format!("/v1/bindings/{other}"))).await;
+    let (status, _, _) = send(&c, get(&format!("/v1/bindings/{other}"))).await;
     assert_eq!(status, StatusCode::NOT_FOUND, "a blob renamed to another key was used");
-    assert!(metric(&c, "curvenet_store_rejected_total").await >= 1.0);
+    assert!(metric_opt(&c, "curvenet_store_rejected_total").await.unwrap_or(0.0) >= 1.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -256,5 +223,100 @@ fn a_four_chunk_bake_binds_once_and_stitches_to_the_whole_bake() {
         std::fs::read(&whole).unwrap() == std::fs::read(&stitched).unwrap(),
         "stitched chunks differ from the whole"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_binding_the_store_lost_is_written_again_and_deletes_reach_the_store() {
+    let dir = temp_dir("store", "lost");
+    let a = replica(&dir).await;
+    let id = post_binding(&a, hand()).await.binding_id;
+    let path = blobs(&dir).pop().unwrap();
+    // Another replica's size limit (or an operator) deleted the file while A keeps the binding in memory.
+    std::fs::remove_file(&path).unwrap();
+    let again = post_binding(&a, hand()).await;
+    assert!(again.cached, "found in A's memory");
+    assert_eq!(blobs(&dir), vec![path.clone()], "a post hitting in memory did not write the lost binding again");
+    let b = replica(&dir).await;
+    let (status, _, _) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::OK, "B does not find the rewritten binding");
+    // A replica that never held the binding in memory deletes it from the store, and says so.
+    let c = replica(&dir).await;
+    let delete = || Request::delete(format!("/v1/bindings/{id}")).body(Body::empty()).unwrap();
+    let (status, _, body) = send(&c, delete()).await;
+    assert_eq!(status, StatusCode::NO_CONTENT, "{}", String::from_utf8_lossy(&body));
+    assert!(blobs(&dir).is_empty(), "the stored file is still there");
+    let (status, _, _) = send(&c, delete()).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "deleting it twice");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `curvenet ARGS` with extra environment variables.
+fn curvenet_env(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
+    let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_curvenet"));
+    cmd.args(args).current_dir(repo());
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("runs")
+}
+
+/// S3 settings pointing at a closed loopback port: a store that is down.
+const S3_DOWN: [(&str, &str); 5] = [
+    ("AWS_ACCESS_KEY_ID", "k"),
+    ("AWS_SECRET_ACCESS_KEY", "s"),
+    ("AWS_REGION", "us-east-1"),
+    ("AWS_ENDPOINT_URL", "http://127.0.0.1:1"),
+    ("AWS_ALLOW_HTTP", "true"),
+];
+
+#[test]
+fn a_store_that_is_down_fails_serve_retryably_and_a_bake_goes_on_without_it() {
+    // serve: 75 (a supervisor restarts it later), the store named once.
+    let run = curvenet_env(&["serve", "--addr", "127.0.0.1:0", "--store", "s3://bucket/p"], &S3_DOWN);
+    let err = stderr(&run);
+    assert_eq!(run.status.code(), Some(75), "{err}");
+    let line =
+        err.lines().find(|l| l.starts_with("curvenet: error:")).unwrap_or_else(|| panic!("no error line: {err}"));
+    assert_eq!(line.matches("binding store").count(), 1, "the store is named once: {line}");
+    assert!(err.contains("s3://bucket/p") && err.contains("cannot list"), "{err}");
+    // A location or configuration that cannot work is bad input: 2.
+    let run = curvenet_env(&["serve", "--addr", "127.0.0.1:0", "--store", "ftp://host/x"], &[]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    let mut plain_http = S3_DOWN;
+    plain_http[4] = ("AWS_ALLOW_HTTP", "false");
+    let run = curvenet_env(&["serve", "--addr", "127.0.0.1:0", "--store", "s3://bucket"], &plain_http);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("AWS_ALLOW_HTTP=true"), "{}", stderr(&run));
+    // bake: warned, baked without the store, the same bytes.
+    let dir = temp_dir("store", "down");
+    let (plain, stored) = (dir.join("plain.usda"), dir.join("stored.usda"));
+    bake(common::SHOT, &plain, &["--frames", "1-2"]);
+    let run = curvenet_env(
+        &["bake", common::SHOT, "--out", stored.to_str().unwrap(), "--frames", "1-2", "--store", "s3://bucket/p"],
+        &S3_DOWN,
+    );
+    let err = stderr(&run);
+    assert!(run.status.success(), "{err}");
+    assert!(err.contains("binding without the store") && err.contains("s3://bucket/p"), "{err}");
+    assert!(std::fs::read(&plain).unwrap() == std::fs::read(&stored).unwrap(), "the bake without its store differs");
+    // A configuration mistake fails the bake (every chunk would fail alike).
+    let run = curvenet_env(
+        &["bake", common::SHOT, "--out", stored.to_str().unwrap(), "--store", "s3://bucket"],
+        &[("AWS_ENDPOINT_URL", "not a url")],
+    );
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("AWS_ENDPOINT_URL"), "{}", stderr(&run));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_store_limit_below_one_binding_is_warned_about() {
+    let dir = temp_dir("store", "tiny");
+    let store = dir.join("store");
+    let out = dir.join("out.usda");
+    let args = ["--frames", "1", "--store", store.to_str().unwrap(), "--store-bytes", "1000"];
+    let run = bake(common::SHOT, &out, &args);
+    assert!(stderr(&run).contains("alone is larger than --store-bytes (1000)"), "{}", stderr(&run));
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -7,18 +7,18 @@
 use std::sync::Arc;
 
 use axum::Router;
-use axum::body::{Body, Bytes};
-use axum::http::{HeaderMap, Request, StatusCode, header};
+use axum::body::Body;
+use axum::http::{Request, StatusCode, header};
 use curvenet_core::PolyMesh;
 use curvenet_core::Surface;
 use curvenet_schema::usd::Stage;
 use curvenet_schema::wire::{BindingRequest, FrameRequest};
 use curvenet_server::{AppState, Config, FrameSource, ViewerStage, app};
 use serde_json::{Value, json};
-use tower::ServiceExt as _;
 
 #[allow(dead_code)] // the helpers this file does not use
 mod common;
+use common::router::{get, post_json, send};
 
 fn hand() -> BindingRequest {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/hand/hand_1k4.usda");
@@ -30,24 +30,6 @@ fn hand() -> BindingRequest {
 
 fn state(token: Option<&str>) -> AppState {
     AppState::new(Config { solve_threads: 2, token: token.map(String::from), ..Config::default() }, None).unwrap()
-}
-
-async fn send(app: &Router, req: Request<Body>) -> (StatusCode, HeaderMap, Bytes) {
-    let r = app.clone().oneshot(req).await.unwrap();
-    let status = r.status();
-    let headers = r.headers().clone();
-    (status, headers, axum::body::to_bytes(r.into_body(), usize::MAX).await.unwrap())
-}
-
-fn get(uri: &str) -> Request<Body> {
-    Request::get(uri).body(Body::empty()).unwrap()
-}
-
-fn post_json(uri: &str, body: &impl serde::Serialize) -> Request<Body> {
-    Request::post(uri)
-        .header(header::CONTENT_TYPE, "application/json")
-        .body(Body::from(serde_json::to_vec(body).unwrap()))
-        .unwrap()
 }
 
 async fn json_of(app: &Router, req: Request<Body>) -> Value {

@@ -356,7 +356,10 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
             ));
         }
     }
-    let store = args.store.as_deref().map(|s| super::store::BakeStore::open(s, args.store_bytes)).transpose()?;
+    let store = match args.store.as_deref() {
+        Some(s) => super::store::BakeStore::open(s, args.store_bytes, warn)?,
+        None => None,
+    };
     let store = store.as_ref();
     let jobs: Vec<MeshJob> = pool.install(|| {
         inputs.into_par_iter().zip(adjustments).map(|(read, a)| bind(read, a, store)).collect::<CliResult<_>>()

@@ -34,6 +34,10 @@ pub enum CliError {
     /// this caller, not worth retrying as is.
     #[error("{0}")]
     Limit(String),
+    /// A service the command needs is unavailable now (a binding store that
+    /// cannot be reached or written): worth retrying (exit 75).
+    #[error("{0}")]
+    Unavailable(String),
     /// The caller withdrew the work (a service bake whose client left, or
     /// the server's drain deadline).
     #[error("the bake was cancelled")]
@@ -47,7 +51,7 @@ impl CliError {
             CliError::Io { source, .. } if never_writable(source.kind()) => 2,
             CliError::Io { .. } => 75,
             CliError::CutShort(_) => 1,
-            CliError::Cancelled => 75,
+            CliError::Cancelled | CliError::Unavailable(_) => 75,
             _ => 2,
         }
     }

@@ -198,7 +198,14 @@ pub fn run(args: &Args) -> CliResult {
         None => AppState::new(config, Some(baker())),
         Some(location) => runtime.block_on(AppState::open(config, Some(baker()), location, args.store_bytes)),
     }
-    .map_err(|e| CliError::Input(e.to_string()))?;
+    .map_err(|e| {
+        let store = e.get_ref().and_then(|inner| inner.downcast_ref::<curvenet_server::store::StoreError>());
+        match store {
+            // A store that is down or unwritable may come back: a supervisor retries on 75.
+            Some(s) if !s.is_config() => CliError::Unavailable(e.to_string()),
+            _ => CliError::Input(e.to_string()),
+        }
+    })?;
     for path in &args.open_stages {
         for stage in open_stage(path)? {
             state.open_in_viewer(stage);

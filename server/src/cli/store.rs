@@ -4,7 +4,7 @@
 //! writes it, the others read it (in a fraction of the build time).
 //!
 //! A bake binding is named by blake3 of everything its deformer is built
-//! from (`curvenet_core::DeformerInput::content_bytes`), not by the
+//! from (`curvenet_core::DeformerInput::write_content`), not by the
 //! service's binding id: the bake builds from USD, the service from its
 //! wire request. Its blob is the service's stored envelope
 //! (`curvenet_server::stored`) without a binding description. A blob that
@@ -36,18 +36,27 @@ pub struct BakeStore {
 }
 
 impl BakeStore {
-    /// Opens the store at `location` (see `serve --store`), at most `max_bytes`.
-    pub fn open(location: &str, max_bytes: Option<u64>) -> CliResult<Self> {
+    /// Opens the store at `location` (see `serve --store`), at most
+    /// `max_bytes`. A location or `AWS_*` configuration that cannot work
+    /// fails the bake (exit 2: every chunk would fail alike); a store that
+    /// cannot be reached or written now is warned about through `warn`, and
+    /// the bake goes on without it (None): a farm chunk binds rather than
+    /// waits for the store.
+    pub fn open(location: &str, max_bytes: Option<u64>, warn: &mut dyn FnMut(String)) -> CliResult<Option<Self>> {
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .enable_all()
             .thread_name("curvenet-store")
             .build()
             .map_err(|e| CliError::Io { context: "starting the store's runtime".into(), source: e })?;
-        let store = runtime
-            .block_on(BindingStore::open(location, max_bytes, Arc::new(Metrics::new())))
-            .map_err(|e| CliError::Input(format!("--store {location}: {e}")))?;
-        Ok(Self { runtime, store })
+        match runtime.block_on(BindingStore::open(location, max_bytes, Arc::new(Metrics::new()))) {
+            Ok(store) => Ok(Some(Self { runtime, store })),
+            Err(e) if e.is_config() => Err(CliError::Input(format!("--store: {e}"))),
+            Err(e) => {
+                warn(format!("--store: {e}; binding without the store"));
+                Ok(None)
+            }
+        }
     }
 
     /// The deformer of `input`: read from the store, else made by `build`
@@ -60,27 +69,39 @@ impl BakeStore {
     ) -> CliResult<(Deformer, Source)> {
         let mut hasher = blake3::Hasher::new();
         hasher.update(b"curvenet bake binding v1");
-        hasher.update(&input.content_bytes());
+        input.write_content(|piece| {
+            hasher.update(piece);
+        });
         let key: [u8; 32] = *hasher.finalize().as_bytes();
         let location = self.store.location();
-        let warn = |m: String| eprintln!("curvenet: warning: {what}: binding store {location}: {m}");
+        // A StoreError names the store itself; the other messages name it here.
+        let warn = |m: String| eprintln!("curvenet: warning: {what}: {m}");
         match self.runtime.block_on(self.store.get(&key)) {
             Ok(Some(bytes)) => match decode_blob(&bytes, &key) {
                 Ok((_, deformer)) => return Ok((deformer, Source::Loaded)),
                 Err(reason) => {
-                    warn(format!("the stored binding is refused ({reason}); binding again"));
+                    warn(format!("binding store {location}: the stored binding is refused ({reason}); binding again"));
                     if let Err(e) = self.runtime.block_on(self.store.remove(&key)) {
                         warn(format!("could not delete the refused binding: {e}"));
                     }
                 }
             },
             Ok(None) => {}
-            Err(e) => warn(format!("cannot be read ({e}); binding without it")),
+            Err(e) => warn(format!("{e}; binding without the stored copy")),
         }
         let deformer = build()?;
         let bytes = encode_blob(&key, &Meta::new(None, None), &deformer);
+        if let Some(max) = self.store.max_bytes()
+            && bytes.len() as u64 > max
+        {
+            warn(format!(
+                "binding store {location}: the binding ({} bytes) alone is larger than --store-bytes ({max}): it is \
+                 kept only until the next write",
+                bytes.len()
+            ));
+        }
         if let Err(e) = self.runtime.block_on(self.store.put(&key, bytes)) {
-            warn(format!("cannot be written ({e}); the bake goes on"));
+            warn(format!("{e}; the bake goes on without writing it"));
         }
         Ok((deformer, Source::Built))
     }

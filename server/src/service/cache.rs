@@ -131,16 +131,25 @@ impl BindingCache {
             self.cache.invalidate(&key).await;
             return Err(too_small(value.size_bytes, self.capacity_bytes, "about"));
         }
+        if let Some(stored) = &self.stored
+            && !fresh
+            && !loaded.load(std::sync::atomic::Ordering::Relaxed)
+        {
+            // Found in memory: the store may have lost it meanwhile, and the
+            // post carries the mesh, so one stat (or HEAD) is cheap beside it.
+            stored.ensure(&key, value.clone()).await;
+        }
         Ok((value, !fresh))
     }
 
-    /// Drops binding `key` from memory and from the store; whether it was
-    /// in memory.
+    /// Drops binding `key` from memory and from the store; whether either
+    /// held it.
     pub async fn remove(&self, key: &Key) -> bool {
-        if let Some(stored) = &self.stored {
-            stored.remove(key).await;
-        }
-        self.cache.remove(key).await.is_some()
+        let stored = match &self.stored {
+            Some(stored) => stored.remove(key).await,
+            None => false,
+        };
+        self.cache.remove(key).await.is_some() || stored
     }
 
     /// Runs moka's pending maintenance (evictions) and updates the gauges.

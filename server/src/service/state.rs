@@ -83,7 +83,9 @@ impl AppState {
         let metrics = Arc::new(Metrics::new());
         let store = crate::store::BindingStore::open(location, max_bytes, metrics.clone())
             .await
-            .map_err(|e| std::io::Error::other(format!("binding store {location}: {e}")))?;
+            // The store's error names the store; kept whole (`get_ref`) so a caller can tell
+            // a configuration mistake (`StoreError::is_config`) from an outage.
+            .map_err(std::io::Error::other)?;
         let keep = resolved_solve_threads(config.solve_threads);
         let stored = crate::stored::StoredBindings::new(Arc::new(store), metrics.clone(), keep);
         Self::with_store(config, baker, metrics, Some(stored))

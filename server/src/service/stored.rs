@@ -102,8 +102,7 @@ pub fn encode(entry: &Entry, key: &Key) -> Vec<u8> {
 /// `deformer` with `meta`, stored under `key` (the layout in the module docs).
 pub fn encode_blob(key: &Key, meta: &Meta, deformer: &Deformer) -> Vec<u8> {
     let meta = serde_json::to_vec(meta).expect("a binding response serialises to JSON");
-    let deformer = deformer.to_bytes();
-    let mut out = Vec::with_capacity(HEADER_BYTES + meta.len() + deformer.len());
+    let mut out = Vec::with_capacity(HEADER_BYTES + meta.len() + deformer.stored_bytes_hint());
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&ENVELOPE_VERSION.to_le_bytes());
     out.extend_from_slice(&curvenet_core::STORED_FORMAT_VERSION.to_le_bytes());
@@ -113,7 +112,7 @@ pub fn encode_blob(key: &Key, meta: &Meta, deformer: &Deformer) -> Vec<u8> {
     out.extend_from_slice(&meta_sum(&meta));
     debug_assert_eq!(out.len(), HEADER_BYTES);
     out.extend_from_slice(&meta);
-    out.extend_from_slice(&deformer);
+    deformer.append_bytes(&mut out);
     out
 }
 
@@ -249,10 +248,33 @@ impl StoredBindings {
         }
     }
 
-    /// Deletes the stored entry `key` (`DELETE /v1/bindings/{id}`), if any.
-    pub async fn remove(&self, key: &Key) {
-        if let Err(e) = self.store.remove(key).await {
-            tracing::warn!(binding_id = %hex(key), error = %e, "binding store delete failed");
+    /// Makes sure the store holds `entry` under `key`: writes it when the
+    /// store lost it (another replica's size limit evicted it, an operator
+    /// deleted it) while this replica kept it in memory. A store that
+    /// cannot be asked is warned about, and nothing is written.
+    pub async fn ensure(&self, key: &Key, entry: Arc<Entry>) {
+        match self.store.contains(key).await {
+            Ok(true) => {}
+            Ok(false) => {
+                tracing::info!(binding_id = %hex(key), store = %self.store.location(), "the binding store lost this binding; writing it again");
+                self.save(key, entry).await;
+            }
+            Err(e) => {
+                tracing::warn!(binding_id = %hex(key), store = %self.store.location(), error = %e, "binding store check failed")
+            }
+        }
+    }
+
+    /// Deletes the stored entry `key` (`DELETE /v1/bindings/{id}`), if any:
+    /// whether the store held it (false too when the store cannot be
+    /// reached, which is warned about).
+    pub async fn remove(&self, key: &Key) -> bool {
+        match self.store.remove(key).await {
+            Ok(held) => held,
+            Err(e) => {
+                tracing::warn!(binding_id = %hex(key), error = %e, "binding store delete failed");
+                false
+            }
         }
     }
 }

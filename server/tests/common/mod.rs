@@ -1,4 +1,8 @@
-//! Helpers of the tests that run the `curvenet` binary (bake, stitch).
+//! Helpers of the tests that run the `curvenet` binary (bake, stitch), and
+//! (`router`) of those that send requests to a service in process.
+
+#[allow(dead_code)]
+pub mod router;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -8,20 +12,24 @@ use std::process::{Command, Output};
 pub const SHOT: &str = "fixtures/shots/hand_wave/shot.usda";
 
 /// The repository root (the binary runs there).
+#[allow(dead_code)]
 pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
 }
 
 /// Runs `curvenet ARGS` in the repository root.
+#[allow(dead_code)]
 pub fn curvenet(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_curvenet")).args(args).current_dir(repo()).output().expect("runs")
 }
 
+#[allow(dead_code)]
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 /// A fresh, empty directory for one test, named after its test file's `kind` and `tag`.
+#[allow(dead_code)]
 pub fn temp_dir(kind: &str, tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("curvenet-{kind}-test-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);

@@ -66,8 +66,20 @@ impl Dir {
         blocking(self.location(), Op::Put, Some(&key), move || dir.put_blocking(&key, &bytes)).await
     }
 
-    /// Deletes entry `key`; absent is fine.
-    pub async fn remove(&self, key: [u8; 32]) -> Result<(), StoreError> {
+    /// Whether entry `key` exists (a regular file under its name).
+    pub async fn contains(&self, key: [u8; 32]) -> Result<bool, StoreError> {
+        let path = self.entry_path(&key);
+        let err = self.io(Op::Get, Some(&key), &path);
+        blocking(self.location(), Op::Get, Some(&key), move || match fs::metadata(&path) {
+            Ok(meta) => Ok(meta.is_file()),
+            Err(e) if gone(&e) => Ok(false),
+            Err(e) => Err(err(e)),
+        })
+        .await
+    }
+
+    /// Deletes entry `key`; absent is fine. Whether it was there.
+    pub async fn remove(&self, key: [u8; 32]) -> Result<bool, StoreError> {
         let dir = self.clone();
         blocking(self.location(), Op::Remove, Some(&key), move || dir.remove_blocking(&key)).await
     }
@@ -155,11 +167,11 @@ impl Dir {
         Ok(())
     }
 
-    pub(super) fn remove_blocking(&self, key: &[u8; 32]) -> Result<(), StoreError> {
+    pub(super) fn remove_blocking(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
         let path = self.entry_path(key);
         match fs::remove_file(&path) {
-            Ok(()) => Ok(()),
-            Err(e) if gone(&e) => Ok(()),
+            Ok(()) => Ok(true),
+            Err(e) if gone(&e) => Ok(false),
             Err(e) => Err(self.io(Op::Remove, Some(key), &path)(e)),
         }
     }

@@ -48,6 +48,17 @@ pub enum StoreError {
     /// `s3://bucket/prefix` URL (no bucket, a bad prefix, another scheme).
     #[error("binding store location {location:?}: {problem}")]
     Location { location: String, problem: String },
+    /// The S3 configuration in the `AWS_*` variables cannot work (a
+    /// malformed endpoint, plain http without `AWS_ALLOW_HTTP`, half a key
+    /// pair): names the variable. Like [`StoreError::Location`], retrying
+    /// cannot mend it.
+    #[error("binding store {location}: {problem}")]
+    Config { location: String, problem: String },
+    /// Opening the store failed in a way that may pass (the endpoint did
+    /// not answer in time, the first listing was refused): what happened
+    /// and, when the environment suggests why, a hint.
+    #[error("binding store {location}: {problem}")]
+    Unreachable { location: String, problem: String },
     /// The directory cannot be created, is not a directory, or cannot be written.
     #[error("binding store {location}: cannot {what}: {source}")]
     Open { location: String, what: &'static str, source: std::io::Error },
@@ -100,7 +111,10 @@ impl StoreError {
     /// The operation that failed (`Op::Open` for a bad location).
     pub fn op(&self) -> Op {
         match self {
-            StoreError::Location { .. } | StoreError::Open { .. } => Op::Open,
+            StoreError::Location { .. }
+            | StoreError::Config { .. }
+            | StoreError::Unreachable { .. }
+            | StoreError::Open { .. } => Op::Open,
             StoreError::Io { op, .. } | StoreError::Object { op, .. } | StoreError::Task { op, .. } => *op,
         }
     }
@@ -111,7 +125,22 @@ impl StoreError {
             StoreError::Io { key, .. } | StoreError::Object { key, .. } | StoreError::Task { key, .. } => {
                 key.as_deref()
             }
-            StoreError::Location { .. } | StoreError::Open { .. } => None,
+            StoreError::Location { .. }
+            | StoreError::Config { .. }
+            | StoreError::Unreachable { .. }
+            | StoreError::Open { .. } => None,
+        }
+    }
+
+    /// Whether the error is in what the user wrote (the location, the
+    /// `AWS_*` configuration), so that trying again as is cannot help: the
+    /// command line exits 2 for these and 75 (try again later) for the rest.
+    pub fn is_config(&self) -> bool {
+        match self {
+            StoreError::Location { .. } | StoreError::Config { .. } => true,
+            // A file where the directory must be stays one.
+            StoreError::Open { source, .. } => source.kind() == std::io::ErrorKind::NotADirectory,
+            _ => false,
         }
     }
 }

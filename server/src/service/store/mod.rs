@@ -146,7 +146,7 @@ impl BindingStore {
     pub async fn open(location: &str, max_bytes: Option<u64>, metrics: Arc<Metrics>) -> Result<Self, StoreError> {
         let opened = match parse_location(location)? {
             Location::Dir(path) => Dir::open(path).await.map(Backend::Dir),
-            Location::S3(url) => open_s3(&url, aws_vars()).await,
+            Location::S3(url) => open_s3(&url, aws_vars(), PROBE_TIMEOUT).await,
         };
         match opened {
             Ok(backend) => Ok(Self { backend, max_bytes, metrics }),
@@ -223,6 +223,18 @@ impl BindingStore {
         self.metrics.store_write_seconds.record(started.elapsed().as_secs_f64());
         self.metrics.store_written.increment(1);
         self.metrics.store_written_bytes.increment(len);
+        if let Some(max) = self.max_bytes
+            && len > max
+        {
+            tracing::warn!(
+                store = self.location(),
+                key = %names::hex(key),
+                bytes = len,
+                max_bytes = max,
+                "this binding alone is larger than the store's size limit: it is kept only until the next write \
+                 (raise --store-bytes)"
+            );
+        }
         let swept = match &self.backend {
             Backend::Dir(d) => d.sweep(self.max_bytes, *key).await,
             Backend::Objects(o) => o.sweep(self.max_bytes, key).await,
@@ -243,9 +255,19 @@ impl BindingStore {
         Ok(())
     }
 
-    /// Deletes the entry of `key` (a blob the caller found corrupt); an
-    /// absent entry is not an error.
-    pub async fn remove(&self, key: &[u8; 32]) -> Result<(), StoreError> {
+    /// Whether the store holds an entry for `key` now (a stat, or one
+    /// HEAD; neither a hit nor a miss, and the entry's recency is kept).
+    pub async fn contains(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
+        let held = match &self.backend {
+            Backend::Dir(d) => d.contains(*key).await,
+            Backend::Objects(o) => o.contains(key).await,
+        };
+        self.settle(held.map(Outcome::clean))
+    }
+
+    /// Deletes the entry of `key` (a blob the caller found corrupt, or a
+    /// `DELETE`); an absent entry is not an error. Whether it was there.
+    pub async fn remove(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
         let removed = match &self.backend {
             Backend::Dir(d) => d.remove(*key).await,
             Backend::Objects(o) => o.remove(key).await,
@@ -290,12 +312,32 @@ impl BindingStore {
     }
 }
 
-/// Builds the S3 client of `url` from `vars` and lists its prefix once.
-async fn open_s3(url: &s3::S3Url, vars: impl IntoIterator<Item = (String, String)>) -> Result<Backend, StoreError> {
+/// How long opening an S3 store may wait for its first listing: an
+/// endpoint that accepts connections and never answers must fail the start
+/// (which a supervisor retries), not hang it.
+const PROBE_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(20);
+
+/// Builds the S3 client of `url` from `vars` and lists its prefix once,
+/// within `timeout`.
+async fn open_s3(
+    url: &s3::S3Url,
+    vars: impl IntoIterator<Item = (String, String)>,
+    timeout: std::time::Duration,
+) -> Result<Backend, StoreError> {
     let client = s3::s3_client(url, vars)?;
-    let objects = s3::Objects::new(client, url.prefix.clone(), url.display());
-    objects.probe().await?;
-    Ok(Backend::Objects(objects))
+    let objects = s3::Objects::new(client.store, url.prefix.clone(), url.display());
+    let unreachable = |problem: String| StoreError::Unreachable { location: url.display(), problem };
+    match tokio::time::timeout(timeout, objects.probe()).await {
+        Ok(Ok(())) => Ok(Backend::Objects(objects)),
+        Ok(Err(e)) => {
+            let hint = client.credentials_hint.map(|h| format!(" ({h})")).unwrap_or_default();
+            Err(unreachable(format!("cannot list the bucket: {e}{hint}")))
+        }
+        Err(_) => Err(unreachable(format!(
+            "the endpoint did not answer a listing within {} s (AWS_ENDPOINT_URL, the network)",
+            timeout.as_secs()
+        ))),
+    }
 }
 
 /// The process's `AWS_*` environment variables (those that are Unicode),

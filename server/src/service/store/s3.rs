@@ -106,32 +106,78 @@ const RETRY: RetryConfig = RetryConfig {
 /// variables in service; the names are object_store's, case-insensitive:
 /// `AWS_ACCESS_KEY_ID`, `AWS_SECRET_ACCESS_KEY`, `AWS_SESSION_TOKEN`,
 /// `AWS_REGION`, which wins over `AWS_DEFAULT_REGION`, `AWS_ENDPOINT_URL`,
-/// `AWS_ENDPOINT_URL_S3`, `AWS_ALLOW_HTTP`, ...). Unknown `AWS_*` names are
-/// ignored, as the AWS tools do. Makes no request.
-pub(super) fn s3_client(
-    url: &S3Url,
-    vars: impl IntoIterator<Item = (String, String)>,
-) -> Result<Arc<dyn ObjectStore>, StoreError> {
+/// `AWS_ENDPOINT_URL_S3`, which wins over `AWS_ENDPOINT_URL`,
+/// `AWS_ALLOW_HTTP`, ...). Unknown `AWS_*` names are ignored, as the AWS
+/// tools do. Makes no request.
+///
+/// What object_store would fail on late or obscurely is refused here as
+/// [`StoreError::Config`] naming the variable: an endpoint that is no
+/// `http(s)://host` URL (object_store panics on some), a plain-http endpoint
+/// without `AWS_ALLOW_HTTP` (its request fails with only "builder error"),
+/// one half of the key pair.
+pub(super) fn s3_client(url: &S3Url, vars: impl IntoIterator<Item = (String, String)>) -> Result<S3Client, StoreError> {
+    let config = |problem: String| StoreError::Config { location: url.display(), problem };
     let mut builder = AmazonS3Builder::new()
         .with_config(AmazonS3ConfigKey::Client(ClientConfigKey::Timeout), REQUEST_TIMEOUT)
         .with_config(AmazonS3ConfigKey::Client(ClientConfigKey::ReadTimeout), READ_TIMEOUT)
         .with_retry(RETRY);
+    let (mut endpoint, mut s3_endpoint, mut allow_http) = (None, None, None);
+    let (mut key_id, mut secret, mut other_credentials) = (false, false, false);
     for (name, value) in vars {
-        if !name.to_ascii_uppercase().starts_with("AWS_") {
+        let upper = name.to_ascii_uppercase();
+        if !upper.starts_with("AWS_") {
             continue;
         }
-        if let Ok(key) = name.to_ascii_lowercase().parse::<AmazonS3ConfigKey>() {
-            builder = builder.with_config(key, value);
+        let Ok(key) = name.to_ascii_lowercase().parse::<AmazonS3ConfigKey>() else { continue };
+        match key {
+            AmazonS3ConfigKey::Endpoint => endpoint = Some((upper, value.clone())),
+            AmazonS3ConfigKey::S3Endpoint => s3_endpoint = Some((upper, value.clone())),
+            AmazonS3ConfigKey::Client(ClientConfigKey::AllowHttp) => allow_http = Some(value.clone()),
+            AmazonS3ConfigKey::AccessKeyId => key_id = !value.is_empty(),
+            AmazonS3ConfigKey::SecretAccessKey => secret = !value.is_empty(),
+            AmazonS3ConfigKey::WebIdentityTokenFile
+            | AmazonS3ConfigKey::ContainerCredentialsRelativeUri
+            | AmazonS3ConfigKey::ContainerCredentialsFullUri => other_credentials = true,
+            _ => {}
+        }
+        builder = builder.with_config(key, value);
+    }
+    if let Some((name, value)) = s3_endpoint.or(endpoint) {
+        let parsed = ::url::Url::parse(&value)
+            .map_err(|e| config(format!("{name}={value:?} is not a URL ({e}); write http(s)://host[:port]")))?;
+        if !matches!(parsed.scheme(), "http" | "https") || parsed.host_str().is_none_or(str::is_empty) {
+            return Err(config(format!("{name}={value:?} is not an http:// or https:// URL with a host")));
+        }
+        let allowed = allow_http
+            .as_deref()
+            .is_some_and(|v| matches!(v.to_ascii_lowercase().as_str(), "1" | "true" | "on" | "yes" | "y"));
+        if parsed.scheme() == "http" && !allowed {
+            return Err(config(format!(
+                "{name}={value:?} is plain http, which is refused unless AWS_ALLOW_HTTP=true is set too"
+            )));
         }
     }
-    let client = builder.with_bucket_name(&url.bucket).build().map_err(|source| StoreError::Object {
-        location: url.display(),
-        op: Op::Open,
-        key: None,
-        object: url.bucket.clone(),
-        source: Box::new(source),
-    })?;
-    Ok(Arc::new(client))
+    match (key_id, secret) {
+        (true, false) => return Err(config("AWS_ACCESS_KEY_ID is set but AWS_SECRET_ACCESS_KEY is not".into())),
+        (false, true) => return Err(config("AWS_SECRET_ACCESS_KEY is set but AWS_ACCESS_KEY_ID is not".into())),
+        _ => {}
+    }
+    let client = builder
+        .with_bucket_name(&url.bucket)
+        .build()
+        .map_err(|source| config(format!("cannot configure the S3 client: {source}")))?;
+    let credentials_hint = (!key_id && !other_credentials).then_some(
+        "no AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY are set, so credentials were asked of the instance \
+         metadata service",
+    );
+    Ok(S3Client { store: Arc::new(client), credentials_hint })
+}
+
+/// An S3 client, and what to add to an error of its first request when the
+/// environment gave it no credentials.
+pub(super) struct S3Client {
+    pub store: Arc<dyn ObjectStore>,
+    pub credentials_hint: Option<&'static str>,
 }
 
 impl Objects {
@@ -163,11 +209,11 @@ impl Objects {
     /// Lists the first page of the prefix: the credentials, the bucket and
     /// the permission to list (which usage and eviction need) are checked
     /// before the store is used.
-    pub async fn probe(&self) -> Result<(), StoreError> {
+    pub async fn probe(&self) -> Result<(), object_store::Error> {
         let prefix = (!self.prefix.is_root()).then_some(&self.prefix);
         match self.store.list(prefix).next().await {
             None | Some(Ok(_)) => Ok(()),
-            Some(Err(e)) => Err(self.err(Op::Open, None, &self.prefix)(e)),
+            Some(Err(e)) => Err(e),
         }
     }
 
@@ -201,15 +247,32 @@ impl Objects {
         Ok(())
     }
 
-    /// Deletes entry `key` and its marker; absent is fine.
-    pub async fn remove(&self, key: &[u8; 32]) -> Result<(), StoreError> {
+    /// Whether entry `key` exists (one HEAD).
+    pub async fn contains(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
+        let blob = self.blob(key);
+        match self.store.head(&blob).await {
+            Ok(_) => Ok(true),
+            Err(object_store::Error::NotFound { .. }) => Ok(false),
+            Err(e) => Err(self.err(Op::Get, Some(key), &blob)(e)),
+        }
+    }
+
+    /// Deletes entry `key` and its marker; absent is fine. Whether the blob
+    /// was there (a HEAD first: S3 answers a DELETE of nothing as success).
+    pub async fn remove(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
+        let held = self.contains(key).await.map_err(|e| match e {
+            StoreError::Object { location, key, object, source, .. } => {
+                StoreError::Object { location, op: Op::Remove, key, object, source }
+            }
+            other => other,
+        })?;
         for object in [self.blob(key), self.marker(key)] {
             match self.store.delete(&object).await {
                 Ok(()) | Err(object_store::Error::NotFound { .. }) => {}
                 Err(e) => return Err(self.err(Op::Remove, Some(key), &object)(e)),
             }
         }
-        Ok(())
+        Ok(held)
     }
 
     /// Lists the prefix once. Only objects directly in it named `<64

@@ -105,8 +105,10 @@ async fn round_trip(store: &BindingStore, metrics: &Metrics) {
     // An empty blob is a blob, not an absence.
     store.put(&key(3), Vec::new()).await.unwrap();
     assert_eq!(store.get(&key(3)).await.unwrap(), Some(Vec::new()));
-    store.remove(&key(1)).await.unwrap();
-    store.remove(&key(1)).await.expect("removing an absent entry is no error");
+    assert!(store.contains(&key(1)).await.unwrap() && !store.contains(&key(2)).await.unwrap());
+    assert!(store.remove(&key(1)).await.unwrap(), "the entry was there");
+    assert!(!store.remove(&key(1)).await.expect("removing an absent entry is no error"), "and is gone");
+    assert!(!store.contains(&key(1)).await.unwrap());
     assert_eq!(store.get(&key(1)).await.unwrap(), None);
     assert_eq!(store.usage().await.unwrap(), (0, 1));
     assert_eq!(metric(metrics, "curvenet_store_hits_total"), 3.0);
@@ -479,13 +481,89 @@ async fn s3_open_against_an_unreachable_endpoint_fails_naming_the_location() {
     ]
     .map(|(k, v)| (k.to_string(), v.to_string()));
     let started = std::time::Instant::now();
-    let e = open_s3(&url, vars).await.map(|_| ()).unwrap_err();
+    let e = open_s3(&url, vars, Duration::from_secs(60)).await.map(|_| ()).unwrap_err();
     assert!(started.elapsed() < Duration::from_secs(30), "took {:?}", started.elapsed());
-    assert!(
-        matches!(&e, StoreError::Object { op: Op::Open, location, .. } if location == "s3://bucket/prefix"),
-        "{e:?}"
-    );
-    assert!(e.to_string().contains("s3://bucket/prefix"), "{e}");
+    assert!(matches!(&e, StoreError::Unreachable { location, .. } if location == "s3://bucket/prefix"), "{e:?}");
+    assert!(e.to_string().contains("s3://bucket/prefix") && e.to_string().contains("cannot list"), "{e}");
+    assert!(!e.is_config(), "an unreachable endpoint may come back: {e}");
+}
+
+fn vars(pairs: &[(&str, &str)]) -> Vec<(String, String)> {
+    pairs.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect()
+}
+
+/// What object_store fails on late, obscurely or with a panic is refused
+/// before any request, naming the variable.
+#[tokio::test]
+async fn s3_configuration_mistakes_name_the_variable() {
+    let url = s3::S3Url::parse("s3://bucket").unwrap();
+    let keys = [("AWS_ACCESS_KEY_ID", "k"), ("AWS_SECRET_ACCESS_KEY", "s"), ("AWS_REGION", "us-east-1")];
+    let cases: &[(&[(&str, &str)], &str)] = &[
+        (
+            &[("AWS_ENDPOINT_URL", "not a url"), ("AWS_ALLOW_HTTP", "true")],
+            "AWS_ENDPOINT_URL=\"not a url\" is not a URL",
+        ),
+        (&[("AWS_ENDPOINT_URL", "ftp://host:21")], "not an http:// or https:// URL"),
+        (&[("AWS_ENDPOINT_URL", "http://")], "is not a URL"),
+        (&[("AWS_ENDPOINT_URL", "http://127.0.0.1:9000")], "set too"),
+        (&[("AWS_ENDPOINT_URL", "http://127.0.0.1:9000"), ("AWS_ALLOW_HTTP", "false")], "AWS_ALLOW_HTTP=true"),
+        // The S3-specific endpoint wins, so it is the one checked.
+        (&[("AWS_ENDPOINT_URL", "https://ok.example"), ("aws_endpoint_url_s3", "https//bad")], "AWS_ENDPOINT_URL_S3="),
+    ];
+    for (extra, says) in cases {
+        let mut v = vars(&keys);
+        v.extend(vars(extra));
+        let e = open_s3(&url, v, Duration::from_secs(5)).await.map(|_| ()).unwrap_err();
+        assert!(matches!(&e, StoreError::Config { .. }) && e.is_config(), "{extra:?}: {e:?}");
+        assert!(e.to_string().contains(says) && e.to_string().contains("s3://bucket"), "{extra:?}: {e}");
+    }
+    for (set, missing) in
+        [("AWS_ACCESS_KEY_ID", "AWS_SECRET_ACCESS_KEY"), ("AWS_SECRET_ACCESS_KEY", "AWS_ACCESS_KEY_ID")]
+    {
+        let e = open_s3(&url, vars(&[(set, "x"), ("AWS_REGION", "us-east-1")]), Duration::from_secs(5))
+            .await
+            .map(|_| ())
+            .unwrap_err();
+        assert!(e.is_config() && e.to_string().contains(&format!("{missing} is not")), "{e}");
+    }
+}
+
+/// Without keys the client asks the instance metadata service; the error
+/// says so, so that a missing variable is not mistaken for a network fault.
+/// The metadata endpoint is pointed at a closed loopback port.
+#[tokio::test]
+async fn s3_without_credentials_says_none_were_set() {
+    let url = s3::S3Url::parse("s3://bucket").unwrap();
+    let v = vars(&[
+        ("AWS_REGION", "us-east-1"),
+        ("AWS_ENDPOINT_URL", "http://127.0.0.1:1"),
+        ("AWS_ALLOW_HTTP", "true"),
+        ("AWS_METADATA_ENDPOINT", "http://127.0.0.1:1"),
+    ]);
+    let e = open_s3(&url, v, Duration::from_secs(60)).await.map(|_| ()).unwrap_err();
+    assert!(e.to_string().contains("no AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY are set"), "{e}");
+}
+
+/// An endpoint that accepts connections and never answers fails the open
+/// at the probe's deadline, not never.
+#[tokio::test]
+async fn s3_open_against_a_silent_endpoint_times_out() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let url = s3::S3Url::parse("s3://bucket").unwrap();
+    let v = vars(&[
+        ("AWS_ACCESS_KEY_ID", "k"),
+        ("AWS_SECRET_ACCESS_KEY", "s"),
+        ("AWS_REGION", "us-east-1"),
+        ("AWS_ENDPOINT_URL", &format!("http://127.0.0.1:{port}")),
+        ("AWS_ALLOW_HTTP", "true"),
+    ]);
+    let started = std::time::Instant::now();
+    let e = open_s3(&url, v, Duration::from_millis(500)).await.map(|_| ()).unwrap_err();
+    assert!(started.elapsed() < Duration::from_secs(10), "took {:?}", started.elapsed());
+    assert!(matches!(&e, StoreError::Unreachable { .. }) && !e.is_config(), "{e:?}");
+    assert!(e.to_string().contains("did not answer"), "{e}");
+    drop(listener);
 }
 
 #[test]
