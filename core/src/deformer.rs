@@ -174,7 +174,6 @@ impl<F: FnMut(&[u8])> Chunks<F> {
 
     fn flush(mut self) {
         (self.sink)(&self.buf);
-        self.buf.clear();
     }
 }
 

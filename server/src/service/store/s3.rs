@@ -249,23 +249,23 @@ impl Objects {
 
     /// Whether entry `key` exists (one HEAD).
     pub async fn contains(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
+        self.head(key, Op::Get).await
+    }
+
+    /// Whether the blob of `key` exists, a failure reported as `op`'s.
+    async fn head(&self, key: &[u8; 32], op: Op) -> Result<bool, StoreError> {
         let blob = self.blob(key);
         match self.store.head(&blob).await {
             Ok(_) => Ok(true),
             Err(object_store::Error::NotFound { .. }) => Ok(false),
-            Err(e) => Err(self.err(Op::Get, Some(key), &blob)(e)),
+            Err(e) => Err(self.err(op, Some(key), &blob)(e)),
         }
     }
 
     /// Deletes entry `key` and its marker; absent is fine. Whether the blob
     /// was there (a HEAD first: S3 answers a DELETE of nothing as success).
     pub async fn remove(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
-        let held = self.contains(key).await.map_err(|e| match e {
-            StoreError::Object { location, key, object, source, .. } => {
-                StoreError::Object { location, op: Op::Remove, key, object, source }
-            }
-            other => other,
-        })?;
+        let held = self.head(key, Op::Remove).await?;
         for object in [self.blob(key), self.marker(key)] {
             match self.store.delete(&object).await {
                 Ok(()) | Err(object_store::Error::NotFound { .. }) => {}
