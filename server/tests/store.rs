@@ -320,3 +320,98 @@ fn a_store_limit_below_one_binding_is_warned_about() {
     assert!(stderr(&run).contains("alone is larger than --store-bytes (1000)"), "{}", stderr(&run));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The stored file of `id` in `dir`.
+fn blob_of(dir: &Path, id: &str) -> PathBuf {
+    dir.join(format!("{id}.cnb"))
+}
+
+/// `blob` with its meta JSON changed by `edit` and its checksum made right
+/// again: what only a deliberate forger (or another release) writes.
+fn with_meta(blob: &[u8], edit: impl FnOnce(&mut Value)) -> Vec<u8> {
+    let len = u32::from_le_bytes(blob[48..52].try_into().unwrap()) as usize;
+    let mut meta: Value = serde_json::from_slice(&blob[64..64 + len]).unwrap();
+    edit(&mut meta);
+    let meta = serde_json::to_vec(&meta).unwrap();
+    let mut out = blob[..64].to_vec();
+    out[48..52].copy_from_slice(&(meta.len() as u32).to_le_bytes());
+    out[56..64].copy_from_slice(&blake3::hash(&meta).as_bytes()[..8]);
+    out.extend_from_slice(&meta);
+    out.extend_from_slice(&blob[64 + len..]);
+    out
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_forged_file_is_refused_and_another_releases_file_is_left_in_place() {
+    let dir = temp_dir("store", "forged");
+    let a = replica(&dir).await;
+    let id = post_binding(&a, hand()).await.binding_id;
+    let mut other = hand().clone();
+    other.curvenets[0].sample_density *= 1.5;
+    let other_id = post_binding(&a, &other).await.binding_id;
+    assert_ne!(id, other_id);
+    // The other binding's file under this id's name, its header key rewritten.
+    let mut forged = std::fs::read(blob_of(&dir, &other_id)).unwrap();
+    let key: Vec<u8> = (0..32).map(|i| u8::from_str_radix(&id[2 * i..2 * i + 2], 16).unwrap()).collect();
+    forged[16..48].copy_from_slice(&key);
+    std::fs::write(blob_of(&dir, &id), &forged).unwrap();
+    let b = replica(&dir).await;
+    let (status, _, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::NOT_FOUND, "a forged file was served: {}", String::from_utf8_lossy(&body));
+    assert_eq!(metric_opt(&b, "curvenet_store_rejected_total").await, Some(1.0));
+    assert!(!blob_of(&dir, &id).exists(), "the forged file was kept");
+
+    // A file of another release: refused, but left for that release's replicas.
+    let foreign =
+        with_meta(&std::fs::read(blob_of(&dir, &other_id)).unwrap(), |m| m["service_version"] = "0.0.1-other".into());
+    std::fs::write(blob_of(&dir, &other_id), &foreign).unwrap();
+    let c = replica(&dir).await;
+    let (status, _, _) = send(&c, get(&format!("/v1/bindings/{other_id}"))).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(metric_opt(&c, "curvenet_store_rejected_total").await, Some(1.0));
+    assert!(std::fs::read(blob_of(&dir, &other_id)).unwrap() == foreign, "another release's file was deleted");
+    // This release's build overwrites it, and the next replica reads it.
+    assert!(!post_binding(&c, &other).await.cached);
+    assert!(std::fs::read(blob_of(&dir, &other_id)).unwrap() != foreign, "not overwritten");
+    let d = replica(&dir).await;
+    let (status, _, _) = send(&d, get(&format!("/v1/bindings/{other_id}"))).await;
+    assert_eq!(status, StatusCode::OK);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn garbage_under_an_entry_name_is_refused_after_its_first_bytes() {
+    let dir = temp_dir("store", "garbage");
+    let id = "ab".repeat(32);
+    // 256 MiB of zeros (sparse): never read whole.
+    let f = std::fs::File::create(blob_of(&dir, &id)).unwrap();
+    f.set_len(256 << 20).unwrap();
+    drop(f);
+    let a = replica(&dir).await;
+    let (status, _, _) = send(&a, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert_eq!(metric_opt(&a, "curvenet_store_rejected_total").await, Some(1.0));
+    let read = metric_opt(&a, "curvenet_store_read_bytes_total").await.unwrap_or(0.0);
+    assert!(read <= 8.0, "{read} bytes of garbage were read");
+    assert!(!blob_of(&dir, &id).exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stored_binding_too_large_for_this_cache_answers_507_without_a_build() {
+    let dir = temp_dir("store", "too-large");
+    let a = replica(&dir).await;
+    let posted = post_binding(&a, hand()).await;
+    let small = Config { solve_threads: 2, cache_bytes: posted.size_bytes / 2, ..Config::default() };
+    let b = app(AppState::open(small, None, dir.to_str().unwrap(), None).await.unwrap());
+    let id = &posted.binding_id;
+    let (status, _, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::INSUFFICIENT_STORAGE, "{}", String::from_utf8_lossy(&body));
+    assert!(String::from_utf8_lossy(&body).contains("cache_too_small"));
+    let (status, _) = frame_points(&b, id).await;
+    assert_eq!(status, StatusCode::INSUFFICIENT_STORAGE);
+    let (status, _, _) = send(&b, post_json("/v1/bindings", hand())).await;
+    assert_eq!(status, StatusCode::INSUFFICIENT_STORAGE);
+    assert_eq!(metric_opt(&b, "curvenet_bindings_computed_total").await.unwrap_or(0.0), 0.0, "built it again");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -366,6 +366,7 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
     })?;
     let bind_ms = ms(t_bind.elapsed());
     let loaded = jobs.iter().filter(|j| j.source == super::store::Source::Loaded).count();
+    let unstored = jobs.iter().filter(|j| j.source == super::store::Source::BuiltNotStored).count();
     for job in &jobs {
         for w in job.deformer.binding().warnings() {
             warn(format!("{}: {w}", job.mesh.path));
@@ -445,11 +446,17 @@ pub fn run_with(args: &Args, warn: &mut dyn FnMut(String), bounds: &Bounds) -> C
             args.out.display(),
             started.elapsed().as_secs_f64(),
             bind_ms,
-            match (store, loaded) {
-                (None, _) => String::new(),
-                (Some(_), 0) => " (built, written to the store)".to_string(),
-                (Some(_), k) if k == jobs.len() => " (loaded from the store)".to_string(),
-                (Some(_), k) => format!(" ({k} of {} loaded from the store)", jobs.len()),
+            match (store, loaded, unstored) {
+                (None, _, _) => String::new(),
+                (Some(_), 0, 0) => " (built, written to the store)".to_string(),
+                (Some(_), 0, u) if u == jobs.len() =>
+                    " (built, not written to the store: see the warnings)".to_string(),
+                (Some(_), k, 0) if k == jobs.len() => " (loaded from the store)".to_string(),
+                (Some(_), k, 0) => format!(" ({k} of {} loaded from the store)", jobs.len()),
+                (Some(_), k, u) => format!(
+                    " ({k} of {} loaded from the store, {u} built and not written to it: see the warnings)",
+                    jobs.len()
+                ),
             },
             solve_ns.load(Ordering::Relaxed) as f64 / 1e6 / frames.len() as f64,
             if threads == 1 { "" } else { "s" },

@@ -25,7 +25,10 @@ use super::{CliError, CliResult};
 /// Where a bake's deformer came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Source {
+    /// Built here, and written to the store when there is one.
     Built,
+    /// Built here; the store could not take it (warned about).
+    BuiltNotStored,
     Loaded,
 }
 
@@ -43,6 +46,9 @@ impl BakeStore {
     /// the bake goes on without it (None): a farm chunk binds rather than
     /// waits for the store.
     pub fn open(location: &str, max_bytes: Option<u64>, warn: &mut dyn FnMut(String)) -> CliResult<Option<Self>> {
+        if max_bytes == Some(0) {
+            return Err(CliError::Input("--store-bytes must be positive: 0 would delete every binding written".into()));
+        }
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .enable_all()
@@ -81,7 +87,10 @@ impl BakeStore {
                 Ok((_, deformer)) => return Ok((deformer, Source::Loaded)),
                 Err(reason) => {
                     warn(format!("binding store {location}: the stored binding is refused ({reason}); binding again"));
-                    if let Err(e) = self.runtime.block_on(self.store.remove(&key)) {
+                    // Another release's blob is left for it (stored.rs).
+                    if !reason.is_other_version()
+                        && let Err(e) = self.runtime.block_on(self.store.remove(&key))
+                    {
                         warn(format!("could not delete the refused binding: {e}"));
                     }
                 }
@@ -102,6 +111,7 @@ impl BakeStore {
         }
         if let Err(e) = self.runtime.block_on(self.store.put(&key, bytes)) {
             warn(format!("{e}; the bake goes on without writing it"));
+            return Ok((deformer, Source::BuiltNotStored));
         }
         Ok((deformer, Source::Built))
     }

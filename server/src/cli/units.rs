@@ -2,7 +2,8 @@
 //! shared by `serve` and `bake`, and finite numbers (`--time 3`,
 //! `--normal 0,0,1`), shared by `inspect` and `draft`.
 
-/// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB.
+/// Parses a byte count with an optional suffix: K/KB (1000), KiB (1024), M/MB, MiB, G/GB, GiB, T/TB, TiB
+/// (a shared binding store is sized in terabytes).
 pub fn parse_bytes(s: &str) -> Result<u64, String> {
     let s = s.trim();
     let split = s.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(s.len());
@@ -16,7 +17,9 @@ pub fn parse_bytes(s: &str) -> Result<u64, String> {
         "mib" => 1024.0 * 1024.0,
         "g" | "gb" => 1e9,
         "gib" => 1024.0 * 1024.0 * 1024.0,
-        other => return Err(format!("unknown unit {other:?} (B, KB, KiB, MB, MiB, GB, GiB)")),
+        "t" | "tb" => 1e12,
+        "tib" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+        other => return Err(format!("unknown unit {other:?} (B, KB, KiB, MB, MiB, GB, GiB, TB, TiB)")),
     };
     let bytes = num * scale;
     // Beyond 2^63 bytes (8 EiB) is no memory a machine has: a typo, refused
@@ -51,6 +54,8 @@ mod tests {
     fn byte_counts_parse_and_overflow_is_refused() {
         assert_eq!(parse_bytes("1536MiB"), Ok(1536 << 20));
         assert_eq!(parse_bytes("2GiB"), Ok(2 << 30));
+        assert_eq!(parse_bytes("3TiB"), Ok(3 << 40));
+        assert_eq!(parse_bytes("2TB"), Ok(2_000_000_000_000));
         assert_eq!(parse_bytes("0"), Ok(0));
         for bad in ["18446744073709551616", "9999999999999999999999KiB", "1e400", "12XB", ""] {
             assert!(parse_bytes(bad).is_err(), "{bad:?} parsed as {:?}", parse_bytes(bad));

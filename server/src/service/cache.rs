@@ -70,28 +70,49 @@ impl BindingCache {
         Self { cache, capacity_bytes, metrics, stored }
     }
 
-    /// `key` from the store, if it holds a good entry that fits the cache.
-    async fn load(&self, key: &Key) -> Option<Entry> {
-        let entry = self.stored.as_ref()?.load(key).await?;
+    /// `key` from the store, if it holds a good entry; `cache_too_small`
+    /// when that entry cannot fit in this replica's cache (building it
+    /// again would give the same size: the post would fail after the build).
+    async fn load(&self, key: &Key) -> Result<Option<Entry>, ServiceError> {
+        let Some(stored) = &self.stored else { return Ok(None) };
+        let Some(entry) = stored.load(key).await else { return Ok(None) };
         if entry.size_bytes > self.capacity_bytes {
             tracing::warn!(binding_id = %entry.id, bytes = entry.size_bytes, capacity = self.capacity_bytes, "a stored binding does not fit in this replica's cache");
-            return None;
+            return Err(too_small(entry.size_bytes, self.capacity_bytes, "about"));
         }
-        Some(entry)
+        Ok(Some(entry))
     }
 
     /// The cached binding `key`, if any (counts a hit or a miss), or else
-    /// the stored one (then cached).
-    pub async fn get(&self, key: &Key) -> Option<Arc<Entry>> {
+    /// the stored one (then cached); `cache_too_small` when the stored one
+    /// cannot fit in this cache.
+    pub async fn get(&self, key: &Key) -> Result<Option<Arc<Entry>>, ServiceError> {
         if let Some(e) = self.cache.get(key).await {
             self.metrics.cache_hits.increment(1);
-            return Some(e);
+            return Ok(Some(e));
         }
         self.metrics.cache_misses.increment(1);
-        self.stored.as_ref()?;
-        let entry =
-            self.cache.entry(*key).or_optionally_insert_with(async { self.load(key).await.map(Arc::new) }).await?;
-        Some(entry.into_value())
+        if self.stored.is_none() {
+            return Ok(None);
+        }
+        let entry = self
+            .cache
+            .entry(*key)
+            .or_try_insert_with(async {
+                match self.load(key).await {
+                    Ok(Some(e)) => Ok(Arc::new(e)),
+                    Ok(None) => Err(None),
+                    Err(e) => Err(Some(e)),
+                }
+            })
+            .await;
+        match entry {
+            Ok(e) => Ok(Some(e.into_value())),
+            Err(e) => match &*e {
+                None => Ok(None),
+                Some(e) => Err(e.clone()),
+            },
+        }
     }
 
     /// The binding `key`, computed by `compute` unless cached or stored.
@@ -107,7 +128,7 @@ impl BindingCache {
             .cache
             .entry(key)
             .or_try_insert_with(async {
-                if let Some(e) = self.load(&key).await {
+                if let Some(e) = self.load(&key).await? {
                     loaded.store(true, std::sync::atomic::Ordering::Relaxed);
                     return Ok(Arc::new(e));
                 }

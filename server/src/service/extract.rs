@@ -195,7 +195,7 @@ impl FromRequestParts<AppState> for CachedBinding {
 pub(crate) async fn lookup(state: &AppState, id: &str) -> Result<Arc<Entry>, ServiceError> {
     tracing::Span::current().record("binding_id", id);
     let key = parse_key(id).ok_or_else(|| ServiceError::unknown_binding(id))?;
-    state.inner.cache.get(&key).await.ok_or_else(|| ServiceError::unknown_binding(id))
+    state.inner.cache.get(&key).await?.ok_or_else(|| ServiceError::unknown_binding(id))
 }
 
 // ---------------------------------------------------------------- admission

@@ -21,10 +21,13 @@
 //! the service version that wrote it (a replica of another release neither
 //! reads nor is read: layouts and results may differ), the key it was asked
 //! for (a file renamed to another key), the meta checksum and JSON, and
-//! core's own length and checksum of the deformer. Anything else is a
+//! core's own length and checksum of the deformer, and for the service's
+//! entries the binding id in the meta (a forged header). Anything else is a
 //! [`Rejected`] blob: warned about with its reason, counted
 //! (`curvenet_store_rejected_total`), deleted from the store so the next
-//! build replaces it, and treated as absent (a post that carries the mesh
+//! build replaces it (except a blob of another release or format, which is
+//! left for the replicas of that release and overwritten when this one
+//! writes the key), and treated as absent (a post that carries the mesh
 //! builds it again; a frame for the id answers `unknown_binding`, which the
 //! client answers by posting the binding again).
 
@@ -39,10 +42,11 @@ use serde::{Deserialize, Serialize};
 use crate::builder::measure;
 use crate::entry::{Entry, Key, hex};
 use crate::metrics::Metrics;
-use crate::store::BindingStore;
+use crate::store::{BindingStore, StoreError};
 
-/// The first 8 bytes of a stored entry.
-pub const MAGIC: [u8; 8] = *b"CNENTRY\0";
+/// The first 8 bytes of a stored entry (the store checks them first, see
+/// [`crate::store::BLOB_MAGIC`]).
+pub const MAGIC: [u8; 8] = crate::store::BLOB_MAGIC;
 /// The envelope's version (this file's layout).
 pub const ENVELOPE_VERSION: u32 = 1;
 /// Bytes before the meta.
@@ -69,6 +73,16 @@ pub enum Rejected {
     Meta(String),
     #[error("its deformer: {0}")]
     Deformer(#[from] FormatError),
+}
+
+impl Rejected {
+    /// Written by another release or format: not damaged, only not this
+    /// build's to read. Such a blob is left in place (a replica of that
+    /// release may be reading it) and replaced when this build writes the
+    /// key; the other rejections delete it.
+    pub fn is_other_version(&self) -> bool {
+        matches!(self, Rejected::Version { .. })
+    }
 }
 
 /// The envelope's description of what it holds: the release that wrote it
@@ -123,6 +137,9 @@ pub fn decode(bytes: &[u8], key: &Key, keep: usize) -> Result<Entry, Rejected> {
     let (Some(topology_hash), Some(response)) = (meta.topology_hash, meta.response) else {
         return Err(Rejected::Meta("no binding description (not written by the service)".into()));
     };
+    if response.binding_id != hex(key) {
+        return Err(Rejected::WrongKey { found: response.binding_id, expected: hex(key) });
+    }
     let (size_bytes, cage) = measure(&deformer, keep);
     let response = BindingResponse { size_bytes, cage, ..response };
     Ok(Entry { id: hex(key), topology_hash, deformer, response, size_bytes })
@@ -201,6 +218,10 @@ impl StoredBindings {
         let bytes = match self.store.get(key).await {
             Ok(Some(bytes)) => bytes,
             Ok(None) => return None,
+            Err(e @ StoreError::Paused { .. }) => {
+                tracing::debug!(binding_id = %hex(key), error = %e, "binding store paused: a miss");
+                return None;
+            }
             Err(e) => {
                 tracing::warn!(binding_id = %hex(key), store = %self.store.location(), error = %e, "binding store read failed");
                 return None;
@@ -215,6 +236,10 @@ impl StoredBindings {
             }
             Ok(Err(reason)) => {
                 self.metrics.store_rejected.increment(1);
+                if reason.is_other_version() {
+                    tracing::warn!(binding_id = %hex(key), store = %self.store.location(), bytes = n, %reason, "stored binding of another release left in place; it will be built again (give each release its own store during a rolling upgrade)");
+                    return None;
+                }
                 tracing::warn!(binding_id = %hex(key), store = %self.store.location(), bytes = n, %reason, "stored binding refused; it will be built again");
                 if let Err(e) = self.store.remove(key).await {
                     tracing::warn!(binding_id = %hex(key), error = %e, "could not delete the refused stored binding");
@@ -258,6 +283,9 @@ impl StoredBindings {
             Ok(false) => {
                 tracing::info!(binding_id = %hex(key), store = %self.store.location(), "the binding store lost this binding; writing it again");
                 self.save(key, entry).await;
+            }
+            Err(e @ StoreError::Paused { .. }) => {
+                tracing::debug!(binding_id = %hex(key), error = %e, "binding store paused: not checked")
             }
             Err(e) => {
                 tracing::warn!(binding_id = %hex(key), store = %self.store.location(), error = %e, "binding store check failed")

@@ -16,7 +16,7 @@ use std::sync::Arc;
 use std::time::SystemTime;
 
 use super::error::{Op, Outcome, StoreError};
-use super::names::{self, BLOB_SUFFIX, Listed, STALE_AGE, Swept};
+use super::names::{self, BLOB_MAGIC, BLOB_SUFFIX, Listed, STALE_AGE, Swept};
 
 /// A store directory (cheap to clone into a blocking task).
 #[derive(Debug, Clone)]
@@ -30,6 +30,8 @@ struct Inner {
     root: PathBuf,
     /// `root` for error messages and logs.
     location: String,
+    /// This process cannot write in it: reads only.
+    read_only: bool,
 }
 
 /// A listing of the directory: the entries, and the temporary files old enough to be a dead writer's.
@@ -128,11 +130,30 @@ impl Dir {
             // A directory or device under an entry's name is not the store's: a miss, as the listing ignores it.
             return Ok(Outcome::clean(None));
         }
+        // The first bytes first: a file that does not start as every blob
+        // does is answered with those bytes alone (which its reader then
+        // refuses), not read whole: garbage under an entry's name may be
+        // of any size.
+        let mut head = [0u8; BLOB_MAGIC.len()];
+        let mut got = 0;
+        while got < head.len() {
+            match file.read(&mut head[got..]) {
+                Ok(0) => break,
+                Ok(n) => got += n,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) if gone(&e) => return Ok(Outcome::clean(None)),
+                Err(e) => return Err(self.io(Op::Get, Some(key), &path)(e)),
+            }
+        }
+        if head[..got] != BLOB_MAGIC[..got] || got < head.len() {
+            return Ok(Outcome::clean(Some(head[..got].to_vec())));
+        }
         let mut bytes = Vec::new();
         let reserve = usize::try_from(meta.len()).unwrap_or(usize::MAX);
         bytes.try_reserve_exact(reserve).map_err(|e| {
             self.io(Op::Get, Some(key), &path)(std::io::Error::new(ErrorKind::OutOfMemory, e.to_string()))
         })?;
+        bytes.extend_from_slice(&head);
         match file.read_to_end(&mut bytes) {
             Ok(_) => {}
             // Deleted on another NFS client after the open: the handle went stale.
@@ -151,7 +172,15 @@ impl Dir {
         Ok(out)
     }
 
+    /// Whether the directory was opened for reading only.
+    pub fn read_only(&self) -> bool {
+        self.inner.read_only
+    }
+
     pub(super) fn put_blocking(&self, key: &[u8; 32], bytes: &[u8]) -> Result<(), StoreError> {
+        if self.inner.read_only {
+            return Err(StoreError::ReadOnly { location: self.inner.location.clone(), key: names::hex(key) });
+        }
         let temp = self.temp_path(&names::hex(key));
         let path = self.entry_path(key);
         let err = |p: &Path| self.io(Op::Put, Some(key), p);
@@ -275,7 +304,7 @@ fn open_blocking(path: PathBuf) -> Result<Dir, StoreError> {
     if !meta.is_dir() {
         return Err(fail("use it as a directory")(std::io::Error::new(ErrorKind::NotADirectory, "not a directory")));
     }
-    let dir = Dir { inner: Arc::new(Inner { root, location: location.clone() }) };
+    let dir = Dir { inner: Arc::new(Inner { root, location: location.clone(), read_only: false }) };
     let probe = dir.temp_path("probe");
     let written = OpenOptions::new()
         .write(true)
@@ -283,8 +312,18 @@ fn open_blocking(path: PathBuf) -> Result<Dir, StoreError> {
         .open(&probe)
         .and_then(|mut f| f.write_all(b"curvenet").and_then(|()| f.sync_all()));
     let removed = fs::remove_file(&probe);
-    written.map_err(fail("write a file in it"))?;
-    removed.map_err(fail("delete a file in it"))?;
+    match written {
+        Ok(()) => removed.map_err(fail("delete a file in it"))?,
+        // A store the farm's bind step writes and its chunks only read
+        // (mounted read-only, or owned by another user): read from, not
+        // written to (each write answers `StoreError::ReadOnly`).
+        Err(e) if matches!(e.kind(), ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem) => {
+            dir.list_blocking().map_err(|_| fail("write a file in it")(e))?;
+            let inner = Inner { read_only: true, ..Arc::into_inner(dir.inner).expect("not shared yet") };
+            return Ok(Dir { inner: Arc::new(inner) });
+        }
+        Err(e) => return Err(fail("write a file in it")(e)),
+    }
     dir.list_blocking()?;
     Ok(dir)
 }

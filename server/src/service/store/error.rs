@@ -68,6 +68,18 @@ pub enum StoreError {
     /// An object store call failed (S3, or any `ObjectStore`).
     #[error("binding store {location}: {op}{key}: {object}: {source}", key = key_part(key))]
     Object { location: String, op: Op, key: Option<String>, object: String, source: Box<object_store::Error> },
+    /// The directory was opened for reading only (this process cannot
+    /// write in it): nothing is written.
+    #[error("binding store {location}: put of {key}: the store is read-only for this process (opened so at start)")]
+    ReadOnly { location: String, key: String },
+    /// A call did not finish within its time (a store that accepts
+    /// connections and never answers, a hung NFS mount).
+    #[error("binding store {location}: {op}{key}: no answer within {seconds} s", key = key_part(key))]
+    TimedOut { location: String, op: Op, key: Option<String>, seconds: u64 },
+    /// The store is not asked for a while after a call timed out or the
+    /// object store failed (see `BindingStore`'s docs, "A store that fails").
+    #[error("binding store {location}: {op}{key}: not asked for {seconds} s more (it failed or did not answer a moment ago)", key = key_part(key))]
+    Paused { location: String, op: Op, key: Option<String>, seconds: u64 },
     /// The blocking task that ran a directory operation did not finish (it
     /// panicked, or the runtime is shutting down).
     #[error("binding store {location}: {op}{key}: the blocking task failed: {source}", key = key_part(key))]
@@ -115,16 +127,24 @@ impl StoreError {
             | StoreError::Config { .. }
             | StoreError::Unreachable { .. }
             | StoreError::Open { .. } => Op::Open,
-            StoreError::Io { op, .. } | StoreError::Object { op, .. } | StoreError::Task { op, .. } => *op,
+            StoreError::Io { op, .. }
+            | StoreError::Object { op, .. }
+            | StoreError::Task { op, .. }
+            | StoreError::TimedOut { op, .. }
+            | StoreError::Paused { op, .. } => *op,
+            StoreError::ReadOnly { .. } => Op::Put,
         }
     }
 
     /// The hex key the error is about, if it is about one blob.
     pub fn key(&self) -> Option<&str> {
         match self {
-            StoreError::Io { key, .. } | StoreError::Object { key, .. } | StoreError::Task { key, .. } => {
-                key.as_deref()
-            }
+            StoreError::Io { key, .. }
+            | StoreError::Object { key, .. }
+            | StoreError::Task { key, .. }
+            | StoreError::TimedOut { key, .. }
+            | StoreError::Paused { key, .. } => key.as_deref(),
+            StoreError::ReadOnly { key, .. } => Some(key),
             StoreError::Location { .. }
             | StoreError::Config { .. }
             | StoreError::Unreachable { .. }
@@ -138,8 +158,13 @@ impl StoreError {
     pub fn is_config(&self) -> bool {
         match self {
             StoreError::Location { .. } | StoreError::Config { .. } => true,
-            // A file where the directory must be stays one.
-            StoreError::Open { source, .. } => source.kind() == std::io::ErrorKind::NotADirectory,
+            // A file where the directory must be stays one; so does a symlink loop.
+            StoreError::Open { source, .. } => {
+                matches!(source.kind(), std::io::ErrorKind::NotADirectory | std::io::ErrorKind::AlreadyExists)
+                    || source.raw_os_error() == Some(libc::ELOOP)
+            }
+            // A bucket that does not exist will not appear by retrying.
+            StoreError::Unreachable { problem, .. } => problem.contains("NoSuchBucket"),
             _ => false,
         }
     }

@@ -53,6 +53,18 @@
 //! get or the put: it is logged and counted as an error, and the answer
 //! stands.
 //!
+//! # A store that fails
+//!
+//! A stat or HEAD must answer within 2 s, a delete or a listing with its
+//! sweep within 10 s; an S3 read or write must not stall for 5 s without a
+//! byte (`AWS_READ_TIMEOUT`), retried for at most 10 s. When an object store
+//! call fails or any call times out, the store is left alone for 30 s:
+//! every call answers [`StoreError::Paused`] at once (not counted as an
+//! error), which the service takes as a miss, so a store that accepts
+//! connections and never answers costs one slow request per replica per 30
+//! s, not every request. A directory's I/O errors (a full disk, a read-only
+//! mount) do not pause it: they are quick and may concern one file.
+//!
 //! # Metrics and logs
 //!
 //! Hits, misses, errors (every backend failure, also those that did not
@@ -69,11 +81,13 @@ mod s3;
 mod tests;
 
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use dir::Dir;
 use error::Outcome;
 pub use error::{Op, StoreError};
+
+pub use names::BLOB_MAGIC;
 
 /// The metrics the store counts into: re-exported so that the command line,
 /// which opens a store without a service, can make them.
@@ -85,7 +99,19 @@ pub struct BindingStore {
     backend: Backend,
     max_bytes: Option<u64>,
     metrics: Arc<Metrics>,
+    /// Until when the store is not asked (see "A store that fails").
+    paused_until: std::sync::Mutex<Option<Instant>>,
 }
+
+/// How long the store is left alone after an object store call failed or
+/// any call timed out: a store that hangs costs one slow request per
+/// replica per pause, not every request.
+const PAUSE: Duration = Duration::from_secs(30);
+/// How long a stat or HEAD may take (`contains`: the check a post found in
+/// memory makes before it is answered).
+const CHECK_TIMEOUT: Duration = Duration::from_secs(2);
+/// How long a delete, or a listing with its sweep, may take.
+const SMALL_CALL_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Where the entries live.
 enum Backend {
@@ -148,8 +174,16 @@ impl BindingStore {
             Location::Dir(path) => Dir::open(path).await.map(Backend::Dir),
             Location::S3(url) => open_s3(&url, aws_vars(), PROBE_TIMEOUT).await,
         };
+        if let Ok(Backend::Dir(d)) = &opened
+            && d.read_only()
+        {
+            tracing::warn!(
+                location = d.location(),
+                "binding store opened read-only: bindings are read from it, none written"
+            );
+        }
         match opened {
-            Ok(backend) => Ok(Self { backend, max_bytes, metrics }),
+            Ok(backend) => Ok(Self { backend, max_bytes, metrics, paused_until: Default::default() }),
             Err(e) => {
                 metrics.store_errors.increment(1);
                 tracing::warn!(location, "{e}");
@@ -171,7 +205,7 @@ impl BindingStore {
     ) -> Result<Self, StoreError> {
         let prefix = s3::parse_prefix(location, prefix)?;
         let objects = s3::Objects::new(store, prefix, location.to_string());
-        Ok(Self { backend: Backend::Objects(objects), max_bytes, metrics })
+        Ok(Self { backend: Backend::Objects(objects), max_bytes, metrics, paused_until: Default::default() })
     }
 
     /// Where the store is (the absolute directory, or `s3://bucket/prefix`), for logs.
@@ -180,6 +214,12 @@ impl BindingStore {
             Backend::Dir(d) => d.location(),
             Backend::Objects(o) => o.location(),
         }
+    }
+
+    /// Whether the store was opened for reading only (a directory this
+    /// process cannot write in): writes answer [`StoreError::ReadOnly`].
+    pub fn read_only(&self) -> bool {
+        matches!(&self.backend, Backend::Dir(d) if d.read_only())
     }
 
     /// The size limit the store was opened with.
@@ -191,6 +231,7 @@ impl BindingStore {
     /// recency. Counts the hit or the miss, the bytes read and the load's
     /// seconds (hits only).
     pub async fn get(&self, key: &[u8; 32]) -> Result<Option<Vec<u8>>, StoreError> {
+        self.check_paused(Op::Get, Some(key))?;
         let started = Instant::now();
         let got = match &self.backend {
             Backend::Dir(d) => d.get(*key).await,
@@ -213,6 +254,7 @@ impl BindingStore {
     /// the write's seconds. The write's failure is the error; the sweep's
     /// failures are logged and counted, and the put still succeeds.
     pub async fn put(&self, key: &[u8; 32], bytes: Vec<u8>) -> Result<(), StoreError> {
+        self.check_paused(Op::Put, Some(key))?;
         let started = Instant::now();
         let len = bytes.len() as u64;
         let written = match &self.backend {
@@ -235,10 +277,14 @@ impl BindingStore {
                  (raise --store-bytes)"
             );
         }
-        let swept = match &self.backend {
-            Backend::Dir(d) => d.sweep(self.max_bytes, *key).await,
-            Backend::Objects(o) => o.sweep(self.max_bytes, key).await,
-        };
+        let swept = self
+            .bounded(Op::Evict, None, SMALL_CALL_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.sweep(self.max_bytes, *key).await,
+                    Backend::Objects(o) => o.sweep(self.max_bytes, key).await,
+                }
+            })
+            .await;
         if let Ok(swept) = self.settle(swept) {
             self.metrics.store_evictions.increment(swept.evicted as u64);
             self.metrics.store_bytes.set(swept.bytes as f64);
@@ -258,31 +304,49 @@ impl BindingStore {
     /// Whether the store holds an entry for `key` now (a stat, or one
     /// HEAD; neither a hit nor a miss, and the entry's recency is kept).
     pub async fn contains(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
-        let held = match &self.backend {
-            Backend::Dir(d) => d.contains(*key).await,
-            Backend::Objects(o) => o.contains(key).await,
-        };
-        self.settle(held.map(Outcome::clean))
+        self.check_paused(Op::Get, Some(key))?;
+        let held = self
+            .bounded(Op::Get, Some(key), CHECK_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.contains(*key).await,
+                    Backend::Objects(o) => o.contains(key).await,
+                }
+                .map(Outcome::clean)
+            })
+            .await;
+        self.settle(held)
     }
 
     /// Deletes the entry of `key` (a blob the caller found corrupt, or a
     /// `DELETE`); an absent entry is not an error. Whether it was there.
     pub async fn remove(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
-        let removed = match &self.backend {
-            Backend::Dir(d) => d.remove(*key).await,
-            Backend::Objects(o) => o.remove(key).await,
-        };
-        self.settle(removed.map(Outcome::clean))
+        self.check_paused(Op::Remove, Some(key))?;
+        let removed = self
+            .bounded(Op::Remove, Some(key), SMALL_CALL_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.remove(*key).await,
+                    Backend::Objects(o) => o.remove(key).await,
+                }
+                .map(Outcome::clean)
+            })
+            .await;
+        self.settle(removed)
     }
 
     /// The store's total bytes and entry count now, from a listing (which
     /// also sets the size gauge).
     pub async fn usage(&self) -> Result<(u64, usize), StoreError> {
-        let entries = match &self.backend {
-            Backend::Dir(d) => d.list().await.map(|l| l.entries),
-            Backend::Objects(o) => o.list().await.map(|l| l.entries),
-        };
-        let entries = self.settle(entries.map(Outcome::clean))?;
+        self.check_paused(Op::List, None)?;
+        let entries = self
+            .bounded(Op::List, None, SMALL_CALL_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.list().await.map(|l| l.entries),
+                    Backend::Objects(o) => o.list().await.map(|l| l.entries),
+                }
+                .map(Outcome::clean)
+            })
+            .await;
+        let entries = self.settle(entries)?;
         let bytes = entries.iter().map(|e| e.bytes).sum();
         self.metrics.store_bytes.set(bytes as f64);
         Ok((bytes, entries.len()))
@@ -300,8 +364,51 @@ impl BindingStore {
             }
             Err(e) => {
                 self.failed(&e);
+                if matches!(e, StoreError::Object { .. } | StoreError::TimedOut { .. }) {
+                    self.pause(&e);
+                }
                 Err(e)
             }
+        }
+    }
+
+    /// `call`, or [`StoreError::TimedOut`] when it takes longer than `limit`.
+    async fn bounded<T>(
+        &self,
+        op: Op,
+        key: Option<&[u8; 32]>,
+        limit: Duration,
+        call: impl Future<Output = Result<T, StoreError>>,
+    ) -> Result<T, StoreError> {
+        tokio::time::timeout(limit, call).await.unwrap_or_else(|_| {
+            Err(StoreError::TimedOut {
+                location: self.location().to_string(),
+                op,
+                key: key.map(names::hex),
+                seconds: limit.as_secs(),
+            })
+        })
+    }
+
+    /// Leaves the store alone for [`PAUSE`] after `e`.
+    fn pause(&self, e: &StoreError) {
+        let mut until = self.paused_until.lock().unwrap_or_else(|p| p.into_inner());
+        *until = Some(Instant::now() + PAUSE);
+        tracing::warn!(store = self.location(), seconds = PAUSE.as_secs(), "binding store paused after: {e}");
+    }
+
+    /// [`StoreError::Paused`] while the store is paused (not counted as an
+    /// error: the failure that paused it was).
+    fn check_paused(&self, op: Op, key: Option<&[u8; 32]>) -> Result<(), StoreError> {
+        let until = *self.paused_until.lock().unwrap_or_else(|p| p.into_inner());
+        match until {
+            Some(until) if until > Instant::now() => Err(StoreError::Paused {
+                location: self.location().to_string(),
+                op,
+                key: key.map(names::hex),
+                seconds: (until - Instant::now()).as_secs().max(1),
+            }),
+            _ => Ok(()),
         }
     }
 

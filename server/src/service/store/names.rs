@@ -2,6 +2,13 @@
 //! and temporary files, and the choice of what to evict. Pure functions, so
 //! the rule that decides which files are the store's is written once.
 
+/// The first 8 bytes of every blob the store holds (the service's and the
+/// bake's entries, `stored.rs`). A backend reads a blob's first bytes
+/// before the rest and answers a blob that does not start so with those
+/// bytes alone, for its reader to refuse: garbage under an entry's name is
+/// never read whole, whatever its size.
+pub const BLOB_MAGIC: [u8; 8] = *b"CNENTRY\0";
+
 use std::time::{Duration, SystemTime};
 
 /// The suffix of a blob's file or object name (`<64 hex>.cnb`).

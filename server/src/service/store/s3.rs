@@ -15,7 +15,7 @@ use object_store::path::Path;
 use object_store::{BackoffConfig, ClientConfigKey, ObjectStore, ObjectStoreExt as _, PutPayload, RetryConfig};
 
 use super::error::{Op, Outcome, StoreError};
-use super::names::{self, BLOB_SUFFIX, Listed, MARKER_SUFFIX, STALE_AGE, Swept};
+use super::names::{self, BLOB_MAGIC, BLOB_SUFFIX, Listed, MARKER_SUFFIX, STALE_AGE, Swept};
 
 /// The entries of one prefix of an object store.
 #[derive(Debug, Clone)]
@@ -91,15 +91,17 @@ pub(super) fn parse_prefix(location: &str, prefix: &str) -> Result<Path, StoreEr
 /// object_store's 30 s default would fail the download of a large binding
 /// on an ordinary link.
 const REQUEST_TIMEOUT: &str = "600s";
-/// How long a request may stall without a byte (unless `AWS_READ_TIMEOUT`).
-const READ_TIMEOUT: &str = "30s";
+/// How long a request may stall without a byte (unless `AWS_READ_TIMEOUT`):
+/// short, because the service waits for the store while it answers a post
+/// (S3 answers within milliseconds; AWS suggests timeouts of seconds).
+const READ_TIMEOUT: &str = "5s";
 /// Retries of a failed request: fewer than object_store's default (10
 /// within 3 minutes), because a store that is down should make a bake
 /// compute its bindings, not wait.
 const RETRY: RetryConfig = RetryConfig {
     backoff: BackoffConfig { init_backoff: Duration::from_millis(100), max_backoff: Duration::from_secs(5), base: 2.0 },
     max_retries: 3,
-    retry_timeout: Duration::from_secs(60),
+    retry_timeout: Duration::from_secs(10),
 };
 
 /// The S3 client of `url`, configured by `vars` (the process's `AWS_*`
@@ -226,12 +228,42 @@ impl Objects {
             Err(object_store::Error::NotFound { .. }) => return Ok(Outcome::clean(None)),
             Err(e) => return Err(self.err(Op::Get, Some(key), &blob)(e)),
         };
-        let bytes = match got.bytes().await {
-            Ok(b) => Vec::from(b),
-            // Deleted between the answer's head and its body.
-            Err(object_store::Error::NotFound { .. }) => return Ok(Outcome::clean(None)),
-            Err(e) => return Err(self.err(Op::Get, Some(key), &blob)(e)),
-        };
+        // Streamed: once the first bytes are in, an object that does not
+        // start as every blob does is answered with those bytes alone (for
+        // the reader to refuse) and the rest is not downloaded.
+        let size = usize::try_from(got.meta.size).unwrap_or(usize::MAX);
+        let mut stream = got.into_stream();
+        let mut bytes: Vec<u8> = Vec::new();
+        let mut checked = false;
+        while let Some(chunk) = stream.next().await {
+            let chunk = match chunk {
+                Ok(c) => c,
+                // Deleted between the answer's head and its body.
+                Err(object_store::Error::NotFound { .. }) => return Ok(Outcome::clean(None)),
+                Err(e) => return Err(self.err(Op::Get, Some(key), &blob)(e)),
+            };
+            bytes.extend_from_slice(&chunk);
+            if !checked && bytes.len() >= BLOB_MAGIC.len() {
+                if bytes[..BLOB_MAGIC.len()] != BLOB_MAGIC {
+                    bytes.truncate(BLOB_MAGIC.len());
+                    return Ok(Outcome::clean(Some(bytes)));
+                }
+                checked = true;
+                let more = size.saturating_sub(bytes.len());
+                if bytes.try_reserve_exact(more).is_err() {
+                    return Err(StoreError::object(
+                        &self.location,
+                        Op::Get,
+                        Some(key),
+                        &blob,
+                        object_store::Error::Generic {
+                            store: "S3",
+                            source: format!("cannot allocate {size} bytes for the blob").into(),
+                        },
+                    ));
+                }
+            }
+        }
         let mut out = Outcome::clean(Some(bytes));
         let marker = self.marker(key);
         if let Err(e) = self.store.put(&marker, PutPayload::default()).await {

@@ -48,17 +48,19 @@ fn key(n: u8) -> [u8; 32] {
     k
 }
 
-/// A blob whose content says its length: 8 bytes of length, then a pattern
-/// of it. A torn or mixed blob fails [`check_blob`].
+/// A blob whose content says its length: the magic every blob starts with
+/// (`BLOB_MAGIC`), 8 bytes of length, then a pattern of it (at least 16
+/// bytes). A torn or mixed blob fails [`check_blob`].
 fn blob(len: usize) -> Vec<u8> {
-    let mut b = (len as u64).to_le_bytes().to_vec();
-    b.extend((0..len.saturating_sub(8)).map(|i| (i * 31 + len) as u8));
-    b.truncate(len.max(8));
+    let len = len.max(16);
+    let mut b = BLOB_MAGIC.to_vec();
+    b.extend_from_slice(&(len as u64).to_le_bytes());
+    b.extend((0..len - 16).map(|i| (i * 31 + len) as u8));
     b
 }
 
 fn check_blob(b: &[u8]) -> bool {
-    b.len() >= 8 && b == blob(u64::from_le_bytes(b[..8].try_into().unwrap()) as usize).as_slice()
+    b.len() >= 16 && b == blob(u64::from_le_bytes(b[8..16].try_into().unwrap()) as usize).as_slice()
 }
 
 async fn dir_store(dir: &TempDir, max_bytes: Option<u64>) -> (BindingStore, Arc<Metrics>) {
@@ -415,8 +417,12 @@ async fn open_of_an_unwritable_location_is_a_typed_error_naming_it() {
     std::fs::set_permissions(&readonly, std::fs::Permissions::from_mode(0o555)).unwrap();
     let probe = readonly.join("probe");
     if std::fs::write(&probe, b"x").is_err() {
-        let e = BindingStore::open(&readonly.display().to_string(), None, metrics.clone()).await.unwrap_err();
-        assert!(matches!(e, StoreError::Open { what: "write a file in it", .. }), "{e:?}");
+        // Opened for reading: a farm's chunks read what its bind step wrote.
+        let store = BindingStore::open(&readonly.display().to_string(), None, metrics.clone()).await.unwrap();
+        assert!(store.read_only());
+        let e = store.put(&[7; 32], b"CNENTRY\0x".to_vec()).await.unwrap_err();
+        assert!(matches!(e, StoreError::ReadOnly { .. }), "{e:?}");
+        assert_eq!(store.get(&[7; 32]).await.unwrap(), None);
     } else {
         let _ = std::fs::remove_file(&probe);
     }
@@ -564,6 +570,65 @@ async fn s3_open_against_a_silent_endpoint_times_out() {
     assert!(matches!(&e, StoreError::Unreachable { .. }) && !e.is_config(), "{e:?}");
     assert!(e.to_string().contains("did not answer"), "{e}");
     drop(listener);
+}
+
+/// A store opened before its endpoint went silent (accepting connections,
+/// never answering): the first call is bounded, and the store is then left
+/// alone: the next calls answer `Paused` at once, not counted as errors.
+#[tokio::test]
+async fn a_store_that_stops_answering_is_paused_after_one_bounded_call() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let url = s3::S3Url::parse("s3://bucket/p").unwrap();
+    let v = vars(&[
+        ("AWS_ACCESS_KEY_ID", "k"),
+        ("AWS_SECRET_ACCESS_KEY", "s"),
+        ("AWS_REGION", "us-east-1"),
+        ("AWS_ENDPOINT_URL", &format!("http://127.0.0.1:{port}")),
+        ("AWS_ALLOW_HTTP", "true"),
+    ]);
+    let client = s3::s3_client(&url, v).unwrap();
+    let metrics = Arc::new(Metrics::new());
+    let store = BindingStore::with_object_store(client.store, "p", "s3://bucket/p", None, metrics.clone()).unwrap();
+    let started = std::time::Instant::now();
+    let e = store.contains(&key(1)).await.unwrap_err();
+    let first = started.elapsed();
+    assert!(matches!(e, StoreError::TimedOut { .. }), "{e:?}");
+    assert!(first < CHECK_TIMEOUT + Duration::from_secs(1), "the check took {first:?}");
+    assert_eq!(metric(&metrics, "curvenet_store_errors_total"), 1.0);
+    let started = std::time::Instant::now();
+    for e in [
+        store.get(&key(1)).await.map(|_| ()).unwrap_err(),
+        store.put(&key(1), BLOB_MAGIC.to_vec()).await.unwrap_err(),
+        store.contains(&key(1)).await.map(|_| ()).unwrap_err(),
+        store.remove(&key(1)).await.map(|_| ()).unwrap_err(),
+    ] {
+        assert!(matches!(e, StoreError::Paused { .. }), "{e:?}");
+        assert!(e.to_string().contains("not asked for"), "{e}");
+    }
+    assert!(started.elapsed() < Duration::from_millis(100), "paused calls waited {:?}", started.elapsed());
+    assert_eq!(metric(&metrics, "curvenet_store_errors_total"), 1.0, "paused calls counted as errors");
+    drop(listener);
+}
+
+/// A blob that does not start with the magic is answered with its first
+/// bytes only, in both backends: garbage under an entry's name is never
+/// read whole.
+#[tokio::test]
+async fn a_blob_without_the_magic_is_answered_with_its_first_bytes_only() {
+    let garbage = vec![0x5au8; 1 << 20];
+    let (store, objects, metrics) = memory_store(None);
+    let name = format!("bindings/v1/{}", names::blob_name(&key(9)));
+    objects.put(&name.as_str().into(), PutPayload::from(garbage.clone())).await.unwrap();
+    assert_eq!(store.get(&key(9)).await.unwrap(), Some(garbage[..8].to_vec()));
+    assert_eq!(metric(&metrics, "curvenet_store_read_bytes_total"), 8.0);
+    let dir = TempDir::new("garbage");
+    let (store, metrics) = dir_store(&dir, None).await;
+    std::fs::write(dir.0.join(names::blob_name(&key(9))), &garbage).unwrap();
+    assert_eq!(store.get(&key(9)).await.unwrap(), Some(garbage[..8].to_vec()));
+    assert_eq!(metric(&metrics, "curvenet_store_read_bytes_total"), 8.0);
+    std::fs::write(dir.0.join(names::blob_name(&key(9))), &BLOB_MAGIC[..5]).unwrap();
+    assert_eq!(store.get(&key(9)).await.unwrap(), Some(BLOB_MAGIC[..5].to_vec()), "a file shorter than the magic");
 }
 
 #[test]

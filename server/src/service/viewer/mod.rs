@@ -142,7 +142,7 @@ async fn stage_entry(state: &AppState, stage: &ViewerStage) -> Result<(Arc<Entry
     let known = stage.bound();
     if let Some(id) = known
         && let Some(entry) = parse_key(&id)
-        && let Some(e) = state.inner.cache.get(&entry).await
+        && let Ok(Some(e)) = state.inner.cache.get(&entry).await
     {
         return Ok((e, true));
     }
