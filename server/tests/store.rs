@@ -415,3 +415,20 @@ async fn a_stored_binding_too_large_for_this_cache_answers_507_without_a_build()
     assert_eq!(metric_opt(&b, "curvenet_bindings_computed_total").await.unwrap_or(0.0), 0.0, "built it again");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stored_file_larger_than_the_cache_is_not_read() {
+    let dir = temp_dir("store", "sparse");
+    let a = replica(&dir).await;
+    let id = post_binding(&a, hand()).await.binding_id;
+    // The real blob, extended (sparse) past the default cache's 2 GiB: a
+    // file that starts like a blob and is too large to be one.
+    let f = std::fs::OpenOptions::new().write(true).open(blob_of(&dir, &id)).unwrap();
+    f.set_len(3 << 30).unwrap();
+    drop(f);
+    let b = replica(&dir).await;
+    let (status, _, body) = send(&b, get(&format!("/v1/bindings/{id}"))).await;
+    assert_eq!(status, StatusCode::INSUFFICIENT_STORAGE, "{}", String::from_utf8_lossy(&body));
+    assert_eq!(metric_opt(&b, "curvenet_store_read_bytes_total").await.unwrap_or(0.0), 0.0, "the file was read");
+    let _ = std::fs::remove_dir_all(&dir);
+}

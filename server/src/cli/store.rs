@@ -56,7 +56,21 @@ impl BakeStore {
             .build()
             .map_err(|e| CliError::Io { context: "starting the store's runtime".into(), source: e })?;
         match runtime.block_on(BindingStore::open(location, max_bytes, Arc::new(Metrics::new()))) {
-            Ok(store) => Ok(Some(Self { runtime, store })),
+            Ok(store) => {
+                if store.read_only() {
+                    warn(format!(
+                        "--store {}: read-only for this process: bindings are read from it, none written",
+                        store.location()
+                    ));
+                }
+                // No stored file larger than half the machine's memory is read (a
+                // sparse or garbage file under an entry's name must not exhaust it).
+                let store = match super::memory_fraction(2) {
+                    Some(max) => store.with_max_blob_bytes(max),
+                    None => store,
+                };
+                Ok(Some(Self { runtime, store }))
+            }
             Err(e) if e.is_config() => Err(CliError::Input(format!("--store: {e}"))),
             Err(e) => {
                 warn(format!("--store: {e}; binding without the store"));

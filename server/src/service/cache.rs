@@ -75,7 +75,12 @@ impl BindingCache {
     /// again would give the same size: the post would fail after the build).
     async fn load(&self, key: &Key) -> Result<Option<Entry>, ServiceError> {
         let Some(stored) = &self.stored else { return Ok(None) };
-        let Some(entry) = stored.load(key).await else { return Ok(None) };
+        let entry = match stored.load(key).await {
+            Ok(Some(entry)) => entry,
+            Ok(None) => return Ok(None),
+            // Its file alone is larger than the cache: not read.
+            Err(file_bytes) => return Err(too_small(file_bytes, self.capacity_bytes, "more than")),
+        };
         if entry.size_bytes > self.capacity_bytes {
             tracing::warn!(binding_id = %entry.id, bytes = entry.size_bytes, capacity = self.capacity_bytes, "a stored binding does not fit in this replica's cache");
             return Err(too_small(entry.size_bytes, self.capacity_bytes, "about"));
@@ -164,13 +169,22 @@ impl BindingCache {
     }
 
     /// Drops binding `key` from memory and from the store; whether either
-    /// held it.
-    pub async fn remove(&self, key: &Key) -> bool {
+    /// held it. A store that cannot be asked (down, paused) is 503
+    /// `unavailable` (the binding is gone from memory, but its stored copy
+    /// may remain, and other replicas would load it again): the caller
+    /// retries the DELETE.
+    pub async fn remove(&self, key: &Key) -> Result<bool, ServiceError> {
+        let in_memory = self.cache.remove(key).await.is_some();
         let stored = match &self.stored {
-            Some(stored) => stored.remove(key).await,
+            Some(stored) => stored.remove(key).await.map_err(|e| {
+                ServiceError::new(
+                    Code::Unavailable,
+                    format!("the binding store could not delete the stored copy ({e}); retry the DELETE"),
+                )
+            })?,
             None => false,
         };
-        self.cache.remove(key).await.is_some() || stored
+        Ok(in_memory || stored)
     }
 
     /// Runs moka's pending maintenance (evictions) and updates the gauges.

@@ -85,7 +85,9 @@ impl AppState {
             .await
             // The store's error names the store; kept whole (`get_ref`) so a caller can tell
             // a configuration mistake (`StoreError::is_config`) from an outage.
-            .map_err(std::io::Error::other)?;
+            .map_err(std::io::Error::other)?
+            // A stored file larger than the cache holds a binding that cannot be cached.
+            .with_max_blob_bytes(config.cache_bytes);
         let keep = resolved_solve_threads(config.solve_threads);
         let stored = crate::stored::StoredBindings::new(Arc::new(store), metrics.clone(), keep);
         Self::with_store(config, baker, metrics, Some(stored))

@@ -213,18 +213,22 @@ impl StoredBindings {
     /// The entry stored under `key`, if there is a good one. A store that
     /// cannot be read is warned about and treated as a miss: the binding is
     /// then built (or the id answered unknown), never failed on the store.
-    pub async fn load(&self, key: &Key) -> Option<Entry> {
+    /// `Err(bytes)`: the stored file is larger than this replica reads
+    /// (its cache's capacity, `BindingStore::with_max_blob_bytes`), so its
+    /// binding could not be cached; it was not read.
+    pub async fn load(&self, key: &Key) -> Result<Option<Entry>, u64> {
         let t = Instant::now();
         let bytes = match self.store.get(key).await {
             Ok(Some(bytes)) => bytes,
-            Ok(None) => return None,
+            Ok(None) => return Ok(None),
+            Err(StoreError::TooLarge { bytes, .. }) => return Err(bytes),
             Err(e @ StoreError::Paused { .. }) => {
                 tracing::debug!(binding_id = %hex(key), error = %e, "binding store paused: a miss");
-                return None;
+                return Ok(None);
             }
             Err(e) => {
                 tracing::warn!(binding_id = %hex(key), store = %self.store.location(), error = %e, "binding store read failed");
-                return None;
+                return Ok(None);
             }
         };
         let (n, k, keep) = (bytes.len(), *key, self.keep);
@@ -232,23 +236,23 @@ impl StoredBindings {
         match decoded {
             Ok(Ok(entry)) => {
                 tracing::info!(binding_id = %entry.id, bytes = n, ms = t.elapsed().as_secs_f64() * 1e3, "loaded from the binding store");
-                Some(entry)
+                Ok(Some(entry))
             }
             Ok(Err(reason)) => {
                 self.metrics.store_rejected.increment(1);
                 if reason.is_other_version() {
                     tracing::warn!(binding_id = %hex(key), store = %self.store.location(), bytes = n, %reason, "stored binding of another release left in place; it will be built again (give each release its own store during a rolling upgrade)");
-                    return None;
+                    return Ok(None);
                 }
                 tracing::warn!(binding_id = %hex(key), store = %self.store.location(), bytes = n, %reason, "stored binding refused; it will be built again");
                 if let Err(e) = self.store.remove(key).await {
                     tracing::warn!(binding_id = %hex(key), error = %e, "could not delete the refused stored binding");
                 }
-                None
+                Ok(None)
             }
             Err(join) => {
                 tracing::error!(binding_id = %hex(key), error = %join, "decoding a stored binding failed");
-                None
+                Ok(None)
             }
         }
     }
@@ -294,15 +298,11 @@ impl StoredBindings {
     }
 
     /// Deletes the stored entry `key` (`DELETE /v1/bindings/{id}`), if any:
-    /// whether the store held it (false too when the store cannot be
-    /// reached, which is warned about).
-    pub async fn remove(&self, key: &Key) -> bool {
-        match self.store.remove(key).await {
-            Ok(held) => held,
-            Err(e) => {
-                tracing::warn!(binding_id = %hex(key), error = %e, "binding store delete failed");
-                false
-            }
-        }
+    /// whether the store held it, or the store's error (warned about; the
+    /// stored copy may remain).
+    pub async fn remove(&self, key: &Key) -> Result<bool, StoreError> {
+        self.store.remove(key).await.inspect_err(|e| {
+            tracing::warn!(binding_id = %hex(key), error = %e, "binding store delete failed");
+        })
     }
 }

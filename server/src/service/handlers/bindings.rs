@@ -66,7 +66,7 @@ pub(crate) async fn delete_binding(
     Params(id): Params<String>,
 ) -> Result<StatusCode, ServiceError> {
     let key = parse_key(&id).ok_or_else(|| ServiceError::unknown_binding(&id))?;
-    if state.inner.cache.remove(&key).await {
+    if state.inner.cache.remove(&key).await? {
         Ok(StatusCode::NO_CONTENT)
     } else {
         Err(ServiceError::unknown_binding(&id))

@@ -57,9 +57,9 @@ impl Dir {
 
     /// The blob `key`, or None. A hit sets the file's mtime to now; failing
     /// that is a problem, not an error (the blob was read whole).
-    pub async fn get(&self, key: [u8; 32]) -> Result<Outcome<Option<Vec<u8>>>, StoreError> {
+    pub async fn get(&self, key: [u8; 32], max_bytes: Option<u64>) -> Result<Outcome<Option<Vec<u8>>>, StoreError> {
         let dir = self.clone();
-        blocking(self.location(), Op::Get, Some(&key), move || dir.get_blocking(&key)).await
+        blocking(self.location(), Op::Get, Some(&key), move || dir.get_blocking(&key, max_bytes)).await
     }
 
     /// Writes `bytes` as entry `key`, atomically.
@@ -114,8 +114,20 @@ impl Dir {
         move |source| StoreError::io(&location, op, key.as_ref(), &path, source)
     }
 
-    pub(super) fn get_blocking(&self, key: &[u8; 32]) -> Result<Outcome<Option<Vec<u8>>>, StoreError> {
+    pub(super) fn get_blocking(
+        &self,
+        key: &[u8; 32],
+        max_bytes: Option<u64>,
+    ) -> Result<Outcome<Option<Vec<u8>>>, StoreError> {
         let path = self.entry_path(key);
+        // A stat before the open: opening a FIFO (or a device) under an
+        // entry's name would block; only regular files are entries.
+        match fs::metadata(&path) {
+            Ok(m) if m.is_file() => {}
+            Ok(_) => return Ok(Outcome::clean(None)),
+            Err(e) if gone(&e) => return Ok(Outcome::clean(None)),
+            Err(e) => return Err(self.io(Op::Get, Some(key), &path)(e)),
+        }
         let mut file = match File::open(&path) {
             Ok(f) => f,
             Err(e) if gone(&e) => return Ok(Outcome::clean(None)),
@@ -129,6 +141,16 @@ impl Dir {
         if !meta.is_file() {
             // A directory or device under an entry's name is not the store's: a miss, as the listing ignores it.
             return Ok(Outcome::clean(None));
+        }
+        if let Some(max) = max_bytes
+            && meta.len() > max
+        {
+            return Err(StoreError::TooLarge {
+                location: self.inner.location.clone(),
+                key: names::hex(key),
+                bytes: meta.len(),
+                max,
+            });
         }
         // The first bytes first: a file that does not start as every blob
         // does is answered with those bytes alone (which its reader then
@@ -164,7 +186,8 @@ impl Dir {
         // The file we hold may have been renamed over since the open; then
         // this touches the replaced file and the new one keeps its own mtime,
         // which is as recent anyway.
-        if let Err(e) = file.set_modified(SystemTime::now())
+        if !self.inner.read_only
+            && let Err(e) = file.set_modified(SystemTime::now())
             && !gone(&e)
         {
             out.problems.push(self.io(Op::Touch, Some(key), &path)(e));

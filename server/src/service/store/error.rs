@@ -72,6 +72,12 @@ pub enum StoreError {
     /// write in it): nothing is written.
     #[error("binding store {location}: put of {key}: the store is read-only for this process (opened so at start)")]
     ReadOnly { location: String, key: String },
+    /// The blob is larger than the largest this store reads
+    /// ([`super::BindingStore::with_max_blob_bytes`]); it was not read.
+    #[error(
+        "binding store {location}: get of {key}: the blob is {bytes} bytes, more than the {max} this process reads"
+    )]
+    TooLarge { location: String, key: String, bytes: u64, max: u64 },
     /// A call did not finish within its time (a store that accepts
     /// connections and never answers, a hung NFS mount).
     #[error("binding store {location}: {op}{key}: no answer within {seconds} s", key = key_part(key))]
@@ -133,6 +139,7 @@ impl StoreError {
             | StoreError::TimedOut { op, .. }
             | StoreError::Paused { op, .. } => *op,
             StoreError::ReadOnly { .. } => Op::Put,
+            StoreError::TooLarge { .. } => Op::Get,
         }
     }
 
@@ -144,7 +151,7 @@ impl StoreError {
             | StoreError::Task { key, .. }
             | StoreError::TimedOut { key, .. }
             | StoreError::Paused { key, .. } => key.as_deref(),
-            StoreError::ReadOnly { key, .. } => Some(key),
+            StoreError::ReadOnly { key, .. } | StoreError::TooLarge { key, .. } => Some(key),
             StoreError::Location { .. }
             | StoreError::Config { .. }
             | StoreError::Unreachable { .. }

@@ -56,14 +56,17 @@
 //! # A store that fails
 //!
 //! A stat or HEAD must answer within 2 s, a delete or a listing with its
-//! sweep within 10 s; an S3 read or write must not stall for 5 s without a
-//! byte (`AWS_READ_TIMEOUT`), retried for at most 10 s. When an object store
+//! sweep within 10 s, a blob's read or write within 120 s; an S3 read or
+//! write must not stall for 5 s without a byte (`AWS_READ_TIMEOUT`),
+//! retried for at most 10 s. When an object store
 //! call fails or any call times out, the store is left alone for 30 s:
 //! every call answers [`StoreError::Paused`] at once (not counted as an
 //! error), which the service takes as a miss, so a store that accepts
 //! connections and never answers costs one slow request per replica per 30
-//! s, not every request. A directory's I/O errors (a full disk, a read-only
-//! mount) do not pause it: they are quick and may concern one file.
+//! s, not every request (a blocking thread stuck in a hung NFS call stays
+//! stuck, but no request waits for it). A directory's I/O errors (a full
+//! disk, a read-only mount) do not pause it: they are quick and may concern
+//! one file.
 //!
 //! # Metrics and logs
 //!
@@ -101,6 +104,8 @@ pub struct BindingStore {
     metrics: Arc<Metrics>,
     /// Until when the store is not asked (see "A store that fails").
     paused_until: std::sync::Mutex<Option<Instant>>,
+    /// The largest blob read (None: any).
+    max_blob_bytes: Option<u64>,
 }
 
 /// How long the store is left alone after an object store call failed or
@@ -112,6 +117,10 @@ const PAUSE: Duration = Duration::from_secs(30);
 const CHECK_TIMEOUT: Duration = Duration::from_secs(2);
 /// How long a delete, or a listing with its sweep, may take.
 const SMALL_CALL_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long reading or writing one blob may take (a hung NFS mount, an S3
+/// endpoint that trickles bytes): S3's own per-request limit, and a
+/// 376k-vertex character's 732 MB over a 100 Mbit/s link in half of it.
+const BLOB_CALL_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Where the entries live.
 enum Backend {
@@ -183,7 +192,9 @@ impl BindingStore {
             );
         }
         match opened {
-            Ok(backend) => Ok(Self { backend, max_bytes, metrics, paused_until: Default::default() }),
+            Ok(backend) => {
+                Ok(Self { backend, max_bytes, metrics, paused_until: Default::default(), max_blob_bytes: None })
+            }
             Err(e) => {
                 metrics.store_errors.increment(1);
                 tracing::warn!(location, "{e}");
@@ -205,7 +216,25 @@ impl BindingStore {
     ) -> Result<Self, StoreError> {
         let prefix = s3::parse_prefix(location, prefix)?;
         let objects = s3::Objects::new(store, prefix, location.to_string());
-        Ok(Self { backend: Backend::Objects(objects), max_bytes, metrics, paused_until: Default::default() })
+        Ok(Self {
+            backend: Backend::Objects(objects),
+            max_bytes,
+            metrics,
+            paused_until: Default::default(),
+            max_blob_bytes: None,
+        })
+    }
+
+    /// Reads no blob larger than `max` bytes: a larger one answers
+    /// [`StoreError::TooLarge`] before a byte of it is read. The service
+    /// passes its cache's capacity (a stored binding is smaller than its
+    /// cached size, so a larger file could not be cached anyway), the bake
+    /// half the machine's memory: a file under an entry's name (a sparse
+    /// one, or garbage that starts like a blob) cannot make the process
+    /// allocate more than that.
+    pub fn with_max_blob_bytes(mut self, max: u64) -> Self {
+        self.max_blob_bytes = Some(max);
+        self
     }
 
     /// Where the store is (the absolute directory, or `s3://bucket/prefix`), for logs.
@@ -233,10 +262,15 @@ impl BindingStore {
     pub async fn get(&self, key: &[u8; 32]) -> Result<Option<Vec<u8>>, StoreError> {
         self.check_paused(Op::Get, Some(key))?;
         let started = Instant::now();
-        let got = match &self.backend {
-            Backend::Dir(d) => d.get(*key).await,
-            Backend::Objects(o) => o.get(key).await,
-        };
+        let max = self.max_blob_bytes;
+        let got = self
+            .bounded(Op::Get, Some(key), BLOB_CALL_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.get(*key, max).await,
+                    Backend::Objects(o) => o.get(key, max).await,
+                }
+            })
+            .await;
         let got = self.settle(got)?;
         match &got {
             Some(bytes) => {
@@ -257,10 +291,14 @@ impl BindingStore {
         self.check_paused(Op::Put, Some(key))?;
         let started = Instant::now();
         let len = bytes.len() as u64;
-        let written = match &self.backend {
-            Backend::Dir(d) => d.put(*key, bytes).await,
-            Backend::Objects(o) => o.put(key, bytes).await,
-        };
+        let written = self
+            .bounded(Op::Put, Some(key), BLOB_CALL_TIMEOUT, async {
+                match &self.backend {
+                    Backend::Dir(d) => d.put(*key, bytes).await,
+                    Backend::Objects(o) => o.put(key, bytes).await,
+                }
+            })
+            .await;
         self.settle(written.map(Outcome::clean))?;
         self.metrics.store_write_seconds.record(started.elapsed().as_secs_f64());
         self.metrics.store_written.increment(1);

@@ -372,7 +372,7 @@ async fn a_file_deleted_between_listing_and_reading_is_a_miss() {
     // Another process deletes both entries after the listing.
     std::fs::remove_file(dir.path().join(names::blob_name(&key(2)))).unwrap();
     std::fs::remove_file(dir.path().join(names::blob_name(&key(3)))).unwrap();
-    assert!(d.get_blocking(&key(2)).unwrap().value.is_none());
+    assert!(d.get_blocking(&key(2), None).unwrap().value.is_none());
     assert_eq!(store.get(&key(3)).await.unwrap(), None);
     let swept = d.evict_listed(listing, Some(0), &key(9));
     assert!(swept.problems.is_empty(), "{:?}", swept.problems);
@@ -629,6 +629,44 @@ async fn a_blob_without_the_magic_is_answered_with_its_first_bytes_only() {
     assert_eq!(metric(&metrics, "curvenet_store_read_bytes_total"), 8.0);
     std::fs::write(dir.0.join(names::blob_name(&key(9))), &BLOB_MAGIC[..5]).unwrap();
     assert_eq!(store.get(&key(9)).await.unwrap(), Some(BLOB_MAGIC[..5].to_vec()), "a file shorter than the magic");
+}
+
+/// A blob larger than `with_max_blob_bytes` is refused before a byte of it
+/// is read (a sparse file, or garbage that starts like a blob, under an
+/// entry's name), in both backends; one within the bound is read.
+#[tokio::test]
+async fn a_blob_larger_than_the_bound_is_not_read() {
+    let dir = TempDir::new("max-blob");
+    let (store, metrics) = dir_store(&dir, None).await;
+    let store = store.with_max_blob_bytes(1000);
+    let f = std::fs::File::create(dir.0.join(names::blob_name(&key(1)))).unwrap();
+    f.set_len(100 << 30).unwrap(); // 100 GiB, sparse
+    drop(f);
+    let e = store.get(&key(1)).await.unwrap_err();
+    assert!(matches!(e, StoreError::TooLarge { bytes, max: 1000, .. } if bytes == 100 << 30), "{e:?}");
+    assert_eq!(metric(&metrics, "curvenet_store_read_bytes_total"), 0.0);
+    store.put(&key(2), blob(1000)).await.unwrap();
+    assert_eq!(store.get(&key(2)).await.unwrap(), Some(blob(1000)));
+    let (store, objects, _) = memory_store(None);
+    let store = store.with_max_blob_bytes(1000);
+    let name = format!("bindings/v1/{}", names::blob_name(&key(3)));
+    objects.put(&name.as_str().into(), PutPayload::from(blob(1001))).await.unwrap();
+    let e = store.get(&key(3)).await.unwrap_err();
+    assert!(matches!(e, StoreError::TooLarge { bytes: 1001, .. }), "{e:?}");
+}
+
+/// A FIFO under an entry's name (opening it would block until a writer
+/// comes, as a hung NFS read would) is a miss, at once.
+#[tokio::test]
+async fn a_fifo_under_an_entry_name_is_a_miss_not_a_hang() {
+    let dir = TempDir::new("fifo");
+    let (store, _) = dir_store(&dir, None).await;
+    let path = dir.0.join(names::blob_name(&key(4)));
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates the node.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+    let got = tokio::time::timeout(Duration::from_secs(5), store.get(&key(4))).await;
+    assert_eq!(got.expect("the get blocked on the FIFO").unwrap(), None);
 }
 
 #[test]
