@@ -550,13 +550,11 @@ async fn s3_without_credentials_says_none_were_set() {
     assert!(e.to_string().contains("no AWS_ACCESS_KEY_ID and AWS_SECRET_ACCESS_KEY are set"), "{e}");
 }
 
-/// An endpoint that accepts connections and never answers fails the open
-/// at the probe's deadline, not never.
-#[tokio::test]
-async fn s3_open_against_a_silent_endpoint_times_out() {
+/// A loopback listener that accepts connections and never answers (kept
+/// open while the returned listener lives), and S3 settings pointing at it.
+fn silent_endpoint() -> (std::net::TcpListener, Vec<(String, String)>) {
     let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
     let port = listener.local_addr().unwrap().port();
-    let url = s3::S3Url::parse("s3://bucket").unwrap();
     let v = vars(&[
         ("AWS_ACCESS_KEY_ID", "k"),
         ("AWS_SECRET_ACCESS_KEY", "s"),
@@ -564,6 +562,15 @@ async fn s3_open_against_a_silent_endpoint_times_out() {
         ("AWS_ENDPOINT_URL", &format!("http://127.0.0.1:{port}")),
         ("AWS_ALLOW_HTTP", "true"),
     ]);
+    (listener, v)
+}
+
+/// An endpoint that accepts connections and never answers fails the open
+/// at the probe's deadline, not never.
+#[tokio::test]
+async fn s3_open_against_a_silent_endpoint_times_out() {
+    let (listener, v) = silent_endpoint();
+    let url = s3::S3Url::parse("s3://bucket").unwrap();
     let started = std::time::Instant::now();
     let e = open_s3(&url, v, Duration::from_millis(500)).await.map(|_| ()).unwrap_err();
     assert!(started.elapsed() < Duration::from_secs(10), "took {:?}", started.elapsed());
@@ -577,16 +584,8 @@ async fn s3_open_against_a_silent_endpoint_times_out() {
 /// alone: the next calls answer `Paused` at once, not counted as errors.
 #[tokio::test]
 async fn a_store_that_stops_answering_is_paused_after_one_bounded_call() {
-    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
-    let port = listener.local_addr().unwrap().port();
+    let (listener, v) = silent_endpoint();
     let url = s3::S3Url::parse("s3://bucket/p").unwrap();
-    let v = vars(&[
-        ("AWS_ACCESS_KEY_ID", "k"),
-        ("AWS_SECRET_ACCESS_KEY", "s"),
-        ("AWS_REGION", "us-east-1"),
-        ("AWS_ENDPOINT_URL", &format!("http://127.0.0.1:{port}")),
-        ("AWS_ALLOW_HTTP", "true"),
-    ]);
     let client = s3::s3_client(&url, v).unwrap();
     let metrics = Arc::new(Metrics::new());
     let store = BindingStore::with_object_store(client.store, "p", "s3://bucket/p", None, metrics.clone()).unwrap();
