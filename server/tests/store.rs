@@ -432,3 +432,23 @@ async fn a_stored_file_larger_than_the_cache_is_not_read() {
     assert_eq!(metric_opt(&b, "curvenet_store_read_bytes_total").await.unwrap_or(0.0), 0.0, "the file was read");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_delete_the_store_cannot_carry_out_is_503_not_204() {
+    let dir = temp_dir("store", "delete-fails");
+    let a = replica(&dir).await;
+    let id = post_binding(&a, hand()).await.binding_id;
+    // Something the store cannot delete under the entry's name (a directory).
+    std::fs::remove_file(blob_of(&dir, &id)).unwrap();
+    std::fs::create_dir(blob_of(&dir, &id)).unwrap();
+    let delete = || Request::delete(format!("/v1/bindings/{id}")).body(Body::empty()).unwrap();
+    let (status, headers, body) = send(&a, delete()).await;
+    assert_eq!(status, StatusCode::SERVICE_UNAVAILABLE, "{}", String::from_utf8_lossy(&body));
+    assert!(headers.contains_key("retry-after"));
+    assert!(String::from_utf8_lossy(&body).contains("retry the DELETE"));
+    // Gone from memory all the same; once the store can delete, the DELETE answers 404 (nothing left).
+    std::fs::remove_dir(blob_of(&dir, &id)).unwrap();
+    let (status, _, _) = send(&a, delete()).await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    let _ = std::fs::remove_dir_all(&dir);
+}
