@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! offset  size  field
-//!      0     8  magic, b"CNENTRY\0"
+//!      0     8  magic, b"CNENTRY\0" (`store::BLOB_MAGIC`, which the store checks first)
 //!      8     4  envelope version, u32 LE (ENVELOPE_VERSION)
 //!     12     4  core's stored-binding format version (curvenet_core::STORED_FORMAT_VERSION)
 //!     16    32  the binding key (the id's 32 bytes)
@@ -42,11 +42,8 @@ use serde::{Deserialize, Serialize};
 use crate::builder::measure;
 use crate::entry::{Entry, Key, hex};
 use crate::metrics::Metrics;
-use crate::store::{BindingStore, StoreError};
+use crate::store::{BLOB_MAGIC, BindingStore, StoreError};
 
-/// The first 8 bytes of a stored entry (the store checks them first, see
-/// [`crate::store::BLOB_MAGIC`]).
-pub const MAGIC: [u8; 8] = crate::store::BLOB_MAGIC;
 /// The envelope's version (this file's layout).
 pub const ENVELOPE_VERSION: u32 = 1;
 /// Bytes before the meta.
@@ -117,7 +114,7 @@ pub fn encode(entry: &Entry, key: &Key) -> Vec<u8> {
 pub fn encode_blob(key: &Key, meta: &Meta, deformer: &Deformer) -> Vec<u8> {
     let meta = serde_json::to_vec(meta).expect("a binding response serialises to JSON");
     let mut out = Vec::with_capacity(HEADER_BYTES + meta.len() + deformer.stored_bytes_hint());
-    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&BLOB_MAGIC);
     out.extend_from_slice(&ENVELOPE_VERSION.to_le_bytes());
     out.extend_from_slice(&curvenet_core::STORED_FORMAT_VERSION.to_le_bytes());
     out.extend_from_slice(key);
@@ -148,7 +145,7 @@ pub fn decode(bytes: &[u8], key: &Key, keep: usize) -> Result<Entry, Rejected> {
 /// The meta and deformer stored in `bytes` under `key`, every check passed
 /// (see the module docs). CPU work: run it off the async runtime.
 pub fn decode_blob(bytes: &[u8], key: &Key) -> Result<(Meta, Deformer), Rejected> {
-    if bytes.len() < 8 || bytes[..8] != MAGIC {
+    if bytes.len() < 8 || bytes[..8] != BLOB_MAGIC {
         return Err(Rejected::Magic { found: bytes[..bytes.len().min(8)].to_vec() });
     }
     if bytes.len() < HEADER_BYTES {

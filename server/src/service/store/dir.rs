@@ -299,9 +299,14 @@ impl Dir {
 
     /// A fresh temporary path in the store directory for a file about `tag`.
     fn temp_path(&self, tag: &str) -> PathBuf {
-        let unique = format!("{:016x}", names::unique_bits());
-        self.inner.root.join(names::temp_name(tag, std::process::id(), &unique))
+        temp_in(&self.inner.root, tag)
     }
+}
+
+/// A fresh temporary file name in `root` (this process's, 64 random bits).
+fn temp_in(root: &Path, tag: &str) -> PathBuf {
+    let unique = format!("{:016x}", names::unique_bits());
+    root.join(names::temp_name(tag, std::process::id(), &unique))
 }
 
 /// Whether an I/O error means the file is not there (any more): deleted, or
@@ -327,28 +332,30 @@ fn open_blocking(path: PathBuf) -> Result<Dir, StoreError> {
     if !meta.is_dir() {
         return Err(fail("use it as a directory")(std::io::Error::new(ErrorKind::NotADirectory, "not a directory")));
     }
-    let dir = Dir { inner: Arc::new(Inner { root, location: location.clone(), read_only: false }) };
-    let probe = dir.temp_path("probe");
+    let probe = temp_in(&root, "probe");
     let written = OpenOptions::new()
         .write(true)
         .create_new(true)
         .open(&probe)
         .and_then(|mut f| f.write_all(b"curvenet").and_then(|()| f.sync_all()));
     let removed = fs::remove_file(&probe);
-    match written {
-        Ok(()) => removed.map_err(fail("delete a file in it"))?,
-        // A store the farm's bind step writes and its chunks only read
-        // (mounted read-only, or owned by another user): read from, not
-        // written to (each write answers `StoreError::ReadOnly`).
-        Err(e) if matches!(e.kind(), ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem) => {
-            dir.list_blocking().map_err(|_| fail("write a file in it")(e))?;
-            let inner = Inner { read_only: true, ..Arc::into_inner(dir.inner).expect("not shared yet") };
-            return Ok(Dir { inner: Arc::new(inner) });
+    // A store the farm's bind step writes and its chunks only read (mounted
+    // read-only, or owned by another user) is opened for reading, if it can
+    // be listed: each write answers `StoreError::ReadOnly`.
+    let unwritable = match written {
+        Ok(()) => {
+            removed.map_err(fail("delete a file in it"))?;
+            None
         }
+        Err(e) if matches!(e.kind(), ErrorKind::PermissionDenied | ErrorKind::ReadOnlyFilesystem) => Some(e),
         Err(e) => return Err(fail("write a file in it")(e)),
+    };
+    let dir = Dir { inner: Arc::new(Inner { root, location: location.clone(), read_only: unwritable.is_some() }) };
+    match (dir.list_blocking(), unwritable) {
+        (Ok(_), _) => Ok(dir),
+        (Err(_), Some(e)) => Err(fail("write a file in it")(e)),
+        (Err(e), None) => Err(e),
     }
-    dir.list_blocking()?;
-    Ok(dir)
 }
 
 /// Runs `work` on a blocking thread; a panic or a shut-down runtime becomes [`StoreError::Task`].

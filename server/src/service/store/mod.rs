@@ -260,18 +260,16 @@ impl BindingStore {
     /// recency. Counts the hit or the miss, the bytes read and the load's
     /// seconds (hits only).
     pub async fn get(&self, key: &[u8; 32]) -> Result<Option<Vec<u8>>, StoreError> {
-        self.check_paused(Op::Get, Some(key))?;
         let started = Instant::now();
         let max = self.max_blob_bytes;
         let got = self
-            .bounded(Op::Get, Some(key), BLOB_CALL_TIMEOUT, async {
+            .guarded(Op::Get, Some(key), BLOB_CALL_TIMEOUT, async {
                 match &self.backend {
                     Backend::Dir(d) => d.get(*key, max).await,
                     Backend::Objects(o) => o.get(key, max).await,
                 }
             })
-            .await;
-        let got = self.settle(got)?;
+            .await?;
         match &got {
             Some(bytes) => {
                 self.metrics.store_hits.increment(1);
@@ -288,18 +286,16 @@ impl BindingStore {
     /// the write's seconds. The write's failure is the error; the sweep's
     /// failures are logged and counted, and the put still succeeds.
     pub async fn put(&self, key: &[u8; 32], bytes: Vec<u8>) -> Result<(), StoreError> {
-        self.check_paused(Op::Put, Some(key))?;
         let started = Instant::now();
         let len = bytes.len() as u64;
-        let written = self
-            .bounded(Op::Put, Some(key), BLOB_CALL_TIMEOUT, async {
-                match &self.backend {
-                    Backend::Dir(d) => d.put(*key, bytes).await,
-                    Backend::Objects(o) => o.put(key, bytes).await,
-                }
-            })
-            .await;
-        self.settle(written.map(Outcome::clean))?;
+        self.guarded(Op::Put, Some(key), BLOB_CALL_TIMEOUT, async {
+            match &self.backend {
+                Backend::Dir(d) => d.put(*key, bytes).await,
+                Backend::Objects(o) => o.put(key, bytes).await,
+            }
+            .map(Outcome::clean)
+        })
+        .await?;
         self.metrics.store_write_seconds.record(started.elapsed().as_secs_f64());
         self.metrics.store_written.increment(1);
         self.metrics.store_written_bytes.increment(len);
@@ -316,14 +312,14 @@ impl BindingStore {
             );
         }
         let swept = self
-            .bounded(Op::Evict, None, SMALL_CALL_TIMEOUT, async {
+            .guarded(Op::Evict, None, SMALL_CALL_TIMEOUT, async {
                 match &self.backend {
                     Backend::Dir(d) => d.sweep(self.max_bytes, *key).await,
                     Backend::Objects(o) => o.sweep(self.max_bytes, key).await,
                 }
             })
             .await;
-        if let Ok(swept) = self.settle(swept) {
+        if let Ok(swept) = swept {
             self.metrics.store_evictions.increment(swept.evicted as u64);
             self.metrics.store_bytes.set(swept.bytes as f64);
             if swept.evicted > 0 {
@@ -342,49 +338,41 @@ impl BindingStore {
     /// Whether the store holds an entry for `key` now (a stat, or one
     /// HEAD; neither a hit nor a miss, and the entry's recency is kept).
     pub async fn contains(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
-        self.check_paused(Op::Get, Some(key))?;
-        let held = self
-            .bounded(Op::Get, Some(key), CHECK_TIMEOUT, async {
-                match &self.backend {
-                    Backend::Dir(d) => d.contains(*key).await,
-                    Backend::Objects(o) => o.contains(key).await,
-                }
-                .map(Outcome::clean)
-            })
-            .await;
-        self.settle(held)
+        self.guarded(Op::Get, Some(key), CHECK_TIMEOUT, async {
+            match &self.backend {
+                Backend::Dir(d) => d.contains(*key).await,
+                Backend::Objects(o) => o.contains(key).await,
+            }
+            .map(Outcome::clean)
+        })
+        .await
     }
 
     /// Deletes the entry of `key` (a blob the caller found corrupt, or a
     /// `DELETE`); an absent entry is not an error. Whether it was there.
     pub async fn remove(&self, key: &[u8; 32]) -> Result<bool, StoreError> {
-        self.check_paused(Op::Remove, Some(key))?;
-        let removed = self
-            .bounded(Op::Remove, Some(key), SMALL_CALL_TIMEOUT, async {
-                match &self.backend {
-                    Backend::Dir(d) => d.remove(*key).await,
-                    Backend::Objects(o) => o.remove(key).await,
-                }
-                .map(Outcome::clean)
-            })
-            .await;
-        self.settle(removed)
+        self.guarded(Op::Remove, Some(key), SMALL_CALL_TIMEOUT, async {
+            match &self.backend {
+                Backend::Dir(d) => d.remove(*key).await,
+                Backend::Objects(o) => o.remove(key).await,
+            }
+            .map(Outcome::clean)
+        })
+        .await
     }
 
     /// The store's total bytes and entry count now, from a listing (which
     /// also sets the size gauge).
     pub async fn usage(&self) -> Result<(u64, usize), StoreError> {
-        self.check_paused(Op::List, None)?;
         let entries = self
-            .bounded(Op::List, None, SMALL_CALL_TIMEOUT, async {
+            .guarded(Op::List, None, SMALL_CALL_TIMEOUT, async {
                 match &self.backend {
                     Backend::Dir(d) => d.list().await.map(|l| l.entries),
                     Backend::Objects(o) => o.list().await.map(|l| l.entries),
                 }
                 .map(Outcome::clean)
             })
-            .await;
-        let entries = self.settle(entries)?;
+            .await?;
         let bytes = entries.iter().map(|e| e.bytes).sum();
         self.metrics.store_bytes.set(bytes as f64);
         Ok((bytes, entries.len()))
@@ -410,22 +398,28 @@ impl BindingStore {
         }
     }
 
-    /// `call`, or [`StoreError::TimedOut`] when it takes longer than `limit`.
-    async fn bounded<T>(
+    /// Every backend call goes through here: [`StoreError::Paused`] at once
+    /// while the store is paused (not counted); else `call`, or
+    /// [`StoreError::TimedOut`] when it takes longer than `limit`, settled
+    /// (its failures logged and counted, the store paused after an object
+    /// store failure or a timeout).
+    async fn guarded<T>(
         &self,
         op: Op,
         key: Option<&[u8; 32]>,
         limit: Duration,
-        call: impl Future<Output = Result<T, StoreError>>,
+        call: impl Future<Output = Result<Outcome<T>, StoreError>>,
     ) -> Result<T, StoreError> {
-        tokio::time::timeout(limit, call).await.unwrap_or_else(|_| {
+        self.check_paused(op, key)?;
+        let done = tokio::time::timeout(limit, call).await.unwrap_or_else(|_| {
             Err(StoreError::TimedOut {
                 location: self.location().to_string(),
                 op,
                 key: key.map(names::hex),
                 seconds: limit.as_secs(),
             })
-        })
+        });
+        self.settle(done)
     }
 
     /// Leaves the store alone for [`PAUSE`] after `e`.
