@@ -228,9 +228,7 @@ impl Objects {
             Err(object_store::Error::NotFound { .. }) => return Ok(Outcome::clean(None)),
             Err(e) => return Err(self.err(Op::Get, Some(key), &blob)(e)),
         };
-        // Streamed: once the first bytes are in, an object that does not
-        // start as every blob does is answered with those bytes alone (for
-        // the reader to refuse) and the rest is not downloaded.
+        // Larger than this process reads: not downloaded at all.
         if let Some(max) = max_bytes
             && got.meta.size > max
         {
@@ -242,6 +240,9 @@ impl Objects {
             });
         }
         let size = usize::try_from(got.meta.size).unwrap_or(usize::MAX);
+        // Streamed: once the first bytes are in, an object that does not
+        // start as every blob does is answered with those bytes alone (for
+        // the reader to refuse) and the rest is not downloaded.
         let mut stream = got.into_stream();
         let mut bytes: Vec<u8> = Vec::new();
         let mut checked = false;
